@@ -1,0 +1,262 @@
+"""The online loop (ALGORITHMS.md section 0), frame by frame.
+
+For each frame: detect, classify, and then either skip it (info-less), step the segment tracker
+(normal frame after a normal frame), or, on the first normal frame ``b`` after an interval, ask
+the gap matcher where the targets are and re-initialise the tracker there. Targets are fixed by
+the first frame's annotation and never created or deleted; a target outside the image is not
+reported on that frame.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from trackfw.errors import UserError
+from trackfw.pipeline import Pipeline
+from trackfw.records import (
+    NO_MATCH,
+    Detections,
+    FloatArray,
+    FrameData,
+    GapProblem,
+    Interval,
+    VideoContext,
+)
+from trackfw.registry import Registry
+from trackfw.stages import STAGE_KINDS, Classifier, Detector, GapMatcher, Stage, Tracker
+from trackfw.video_io import iter_frames
+
+ProgressCallback = Callable[[int], None]
+
+
+@dataclass
+class FrameRecord:
+    """What happened on one frame (one row of frames.csv)."""
+
+    t: int
+    status: str
+    probability: float | None = None
+    infoless: bool | None = None
+    detections: Detections | None = None
+    milliseconds: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class GapRecord:
+    """One interval crossing (one entry of gaps.json)."""
+
+    interval: Interval
+    resolved: bool
+    target_ids: list[int]
+    positions: list[list[float]] = field(default_factory=list)
+    matched_detection: list[int | None] = field(default_factory=list)
+    cost: float | None = None
+    chosen: str | None = None
+    milliseconds: float = 0.0
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class VideoRun:
+    """The result of running a pipeline over one video."""
+
+    video: VideoContext
+    target_ids: list[int]
+    tracks: list[tuple[int, int, float, float]]
+    frames: list[FrameRecord]
+    gaps: list[GapRecord]
+    initialised_from: str
+    seconds: float
+
+    @property
+    def frames_per_second(self) -> float:
+        """Processed frames per wall-clock second."""
+        return len(self.frames) / self.seconds if self.seconds > 0 else float("inf")
+
+
+def stages_need_pixels(stages: dict[str, Stage]) -> bool:
+    """True when any stage (or a nested stage) reads pixels."""
+    return any(stage.needs_pixels for stage in stages.values())
+
+
+def _check_ground_truth(stages: dict[str, Stage], video: VideoContext) -> None:
+    for kind, stage in stages.items():
+        nested = list(stage.nested_stages.values())
+        for candidate in (stage, *nested):
+            if candidate.needs_ground_truth and video.ground_truth is None:
+                raise UserError(
+                    f"{video.path}: the {kind.replace('_', ' ')} {candidate.name!r} needs ground truth"
+                    " (gt.csv, heads.csv, intervals.csv) and this video has none."
+                )
+
+
+def _initial_targets(
+    video: VideoContext, mode: str, t: int, detections: Detections
+) -> tuple[np.ndarray, FloatArray, str]:
+    truth = video.ground_truth
+    annotated = truth.targets.get(t, {}) if truth is not None else {}
+    if mode == "gt" or (mode == "auto" and annotated):
+        if not annotated:
+            raise UserError(
+                f"{video.path}: gt.csv has no target on frame {t + 1}; expected the people of"
+                " interest annotated on the first frame (or engine.init: detections)."
+            )
+        ids = np.array(sorted(annotated), dtype=np.int64)
+        positions = np.array([annotated[int(i)] for i in ids], dtype=np.float64).reshape(-1, 2)
+        return ids, positions, "gt"
+    ids = np.arange(1, len(detections) + 1, dtype=np.int64)
+    return ids, detections.points.copy(), "detections"
+
+
+class Engine:
+    """Runs a validated pipeline over videos."""
+
+    def __init__(self, pipeline: Pipeline, registry: Registry) -> None:
+        self.pipeline = pipeline
+        self.registry = registry
+
+    def run_video(self, video: VideoContext, progress: ProgressCallback | None = None) -> VideoRun:
+        """Track the targets through one video.
+
+        Raises:
+            UserError: the video lacks what a stage needs (ground truth for oracle stages, an
+                annotation on the first frame).
+        """
+        stages = self.pipeline.build(self.registry)
+        _check_ground_truth(stages, video)
+        for stage in stages.values():
+            for candidate in (stage, *stage.nested_stages.values()):
+                candidate.start(video)
+        detector = stages["detector"]
+        classifier = stages["classifier"]
+        tracker = stages["tracker"]
+        gap_matcher = stages["gap_matcher"]
+        assert isinstance(detector, Detector) and isinstance(classifier, Classifier)
+        assert isinstance(tracker, Tracker) and isinstance(gap_matcher, GapMatcher)
+        decode = stages_need_pixels(stages)
+        width, height = video.width, video.height
+        clock = time.perf_counter
+
+        frames: list[FrameRecord] = []
+        tracks: list[tuple[int, int, float, float]] = []
+        gaps: list[GapRecord] = []
+        target_ids = np.zeros(0, dtype=np.int64)
+        histories: list[list[tuple[float, float]]] = []
+        initialised_from = ""
+        last_normal_t: int | None = None
+        last_normal_image: np.ndarray | None = None
+        interval_open = False
+        started = clock()
+
+        for t, image, status in iter_frames(video, decode=decode):
+            if progress is not None:
+                progress(t)
+            if status != "ok":
+                frames.append(FrameRecord(t, status))
+                continue
+            frame = FrameData(t, image, video)
+            record = FrameRecord(t, "ok")
+            tick = clock()
+            raw = detector.detect(frame)
+            # The stable index is the position in the detector's own output.
+            detections = Detections(raw.points, raw.scores, raw.boxes)
+            tock = clock()
+            record.milliseconds["detector"] = (tock - tick) * 1e3
+            decision = classifier.classify(frame, detections)
+            tick = clock()
+            record.milliseconds["classifier"] = (tick - tock) * 1e3
+            first = last_normal_t is None
+            infoless = bool(decision.infoless) and not first
+            classifier.feedback(t, infoless)
+            record.probability = float(decision.probability)
+            record.infoless = infoless
+            record.detections = detections
+            frames.append(record)
+
+            if first:
+                target_ids, positions, initialised_from = _initial_targets(
+                    video, self.pipeline.engine.init, t, detections
+                )
+                tracker.initialise(t, target_ids, positions)
+                histories = [[] for _ in target_ids]
+                record.milliseconds["tracker"] = (clock() - tick) * 1e3
+            elif infoless:
+                interval_open = True
+                continue
+            elif interval_open:
+                assert last_normal_t is not None
+                interval = Interval(a=last_normal_t, b=t)
+                problem = GapProblem(
+                    interval=interval,
+                    target_ids=target_ids,
+                    histories=[np.asarray(h, dtype=np.float64).reshape(-1, 2) for h in histories],
+                    states=tracker.states(),
+                    detections=detections,
+                    frame_a=last_normal_image,
+                    frame_b=image,
+                    video=video,
+                )
+                solution = gap_matcher.match(problem)
+                tock = clock()
+                record.milliseconds["gap_matcher"] = (tock - tick) * 1e3
+                tracker.reinitialise(t, solution.positions, solution.matched_detection)
+                record.milliseconds["tracker"] = (clock() - tock) * 1e3
+                gaps.append(
+                    GapRecord(
+                        interval=interval,
+                        resolved=True,
+                        target_ids=[int(i) for i in target_ids],
+                        positions=np.round(solution.positions, 3).tolist(),
+                        matched_detection=[
+                            None if int(d) == NO_MATCH else int(d)
+                            for d in solution.matched_detection
+                        ],
+                        cost=None if solution.cost is None else float(solution.cost),
+                        chosen=solution.chosen,
+                        milliseconds=record.milliseconds["gap_matcher"],
+                        diagnostics=solution.diagnostics,
+                    )
+                )
+                histories = [[] for _ in target_ids]
+                interval_open = False
+            else:
+                tracker.step(t, detections)
+                record.milliseconds["tracker"] = (clock() - tick) * 1e3
+
+            states = tracker.states()
+            for history, state in zip(histories, states, strict=True):
+                x, y = float(state.position[0]), float(state.position[1])
+                history.append((x, y))
+                if 0.0 <= x < width and 0.0 <= y < height:
+                    tracks.append((t, int(state.target_id), x, y))
+            last_normal_t = t
+            if decode:
+                last_normal_image = image
+
+        if interval_open and last_normal_t is not None:
+            # The video ends inside an interval: there is no frame b to re-link on.
+            gaps.append(
+                GapRecord(
+                    interval=Interval(a=last_normal_t, b=video.n_frames),
+                    resolved=False,
+                    target_ids=[int(i) for i in target_ids],
+                )
+            )
+        if last_normal_t is None:
+            raise UserError(f"{video.path}: no frame could be read; nothing to track.")
+        return VideoRun(
+            video=video,
+            target_ids=[int(i) for i in target_ids],
+            tracks=tracks,
+            frames=frames,
+            gaps=gaps,
+            initialised_from=initialised_from,
+            seconds=clock() - started,
+        )
+
+
+__all__ = ["STAGE_KINDS", "Engine", "FrameRecord", "GapRecord", "VideoRun"]

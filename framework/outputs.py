@@ -1,0 +1,143 @@
+"""Run outputs on disk (DESIGN.md section 6), each file written atomically.
+
+Per video: ``tracks.txt`` (MOTChallenge text), ``frames.csv`` (per-frame decisions, detections
+and stage timings), ``gaps.json`` (one entry per interval) and ``summary.json``. summary.json is
+written last, so its presence marks a complete run.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+from typing import Any
+
+from trackfw import __version__
+from trackfw.atomic import write_json, write_text
+from trackfw.engine import FrameRecord, VideoRun
+from trackfw.pipeline import Pipeline
+from trackfw.stages import STAGE_KINDS
+
+TRACKS_FILE = "tracks.txt"
+FRAMES_FILE = "frames.csv"
+GAPS_FILE = "gaps.json"
+SUMMARY_FILE = "summary.json"
+FRAMES_HEADER = (
+    "frame",
+    "status",
+    "infoless_probability",
+    "infoless",
+    "n_detections",
+    "detections",
+    *(f"ms_{kind}" for kind in STAGE_KINDS),
+)
+
+
+def tracks_text(run: VideoRun, box_size: float) -> str:
+    """MOTChallenge rows ``frame,id,left,top,width,height,conf,-1,-1,-1`` (1-based frames)."""
+    half = box_size / 2.0
+    lines = [
+        f"{t + 1},{target_id},{x - half:.2f},{y - half:.2f},{box_size:g},{box_size:g},1,-1,-1,-1"
+        for t, target_id, x, y in sorted(run.tracks, key=lambda row: (row[0], row[1]))
+    ]
+    return "\n".join(lines) + ("\n" if lines else "")
+
+
+def _frame_row(record: FrameRecord) -> list[Any]:
+    detections = record.detections
+    points = (
+        "" if detections is None else ";".join(f"{x:.1f} {y:.1f}" for x, y in detections.points)
+    )
+    return [
+        record.t + 1,
+        record.status,
+        "" if record.probability is None else f"{record.probability:.4f}",
+        "" if record.infoless is None else int(record.infoless),
+        "" if detections is None else len(detections),
+        points,
+        *(
+            f"{record.milliseconds[kind]:.3f}" if kind in record.milliseconds else ""
+            for kind in STAGE_KINDS
+        ),
+    ]
+
+
+def frames_text(run: VideoRun) -> str:
+    """frames.csv content."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(FRAMES_HEADER)
+    for record in run.frames:
+        writer.writerow(_frame_row(record))
+    return buffer.getvalue()
+
+
+def gaps_data(run: VideoRun) -> list[dict[str, Any]]:
+    """gaps.json content: frames are 1-based like every other file."""
+    entries = []
+    for gap in run.gaps:
+        entries.append(
+            {
+                "a": gap.interval.a + 1,
+                "b": gap.interval.b + 1 if gap.resolved else None,
+                "horizon": gap.interval.horizon,
+                "resolved": gap.resolved,
+                "chosen": gap.chosen,
+                "cost": gap.cost,
+                "matches": {
+                    str(target_id): detection
+                    for target_id, detection in zip(
+                        gap.target_ids, gap.matched_detection, strict=False
+                    )
+                },
+                "positions": {
+                    str(target_id): position
+                    for target_id, position in zip(gap.target_ids, gap.positions, strict=False)
+                },
+                "milliseconds": round(gap.milliseconds, 3),
+                "diagnostics": gap.diagnostics,
+            }
+        )
+    return entries
+
+
+def summary_data(run: VideoRun, pipeline: Pipeline) -> dict[str, Any]:
+    """summary.json content."""
+    statuses = [record.status for record in run.frames]
+    stage_means = {}
+    for kind in STAGE_KINDS:
+        values = [r.milliseconds[kind] for r in run.frames if kind in r.milliseconds]
+        stage_means[kind] = round(sum(values) / len(values), 4) if values else None
+    return {
+        "trackfw_version": __version__,
+        "pipeline": pipeline.name,
+        "pipeline_hash": pipeline.content_hash,
+        "pipeline_file": None if pipeline.source is None else str(pipeline.source),
+        "config": pipeline.config,
+        "video": run.video.name,
+        "video_path": run.video.path,
+        "n_frames": run.video.n_frames,
+        "frames_ok": statuses.count("ok"),
+        "frames_unreadable": statuses.count("unreadable"),
+        "frames_unread": statuses.count("unread"),
+        "frames_infoless": sum(1 for r in run.frames if r.infoless),
+        "intervals": len(run.gaps),
+        "targets": run.target_ids,
+        "initialised_from": run.initialised_from,
+        "seconds": round(run.seconds, 4),
+        "frames_per_second": round(run.frames_per_second, 2),
+        "ms_per_frame": stage_means,
+    }
+
+
+def write_run(run: VideoRun, pipeline: Pipeline, directory: Path) -> Path:
+    """Write the four files of one video run into ``directory``; returns it."""
+    directory.mkdir(parents=True, exist_ok=True)
+    # summary.json marks completion: drop a stale one first so a crash midway cannot leave an old
+    # summary beside new partial files.
+    (directory / SUMMARY_FILE).unlink(missing_ok=True)
+    write_text(directory / TRACKS_FILE, tracks_text(run, pipeline.engine.box_size))
+    write_text(directory / FRAMES_FILE, frames_text(run))
+    write_json(directory / GAPS_FILE, gaps_data(run))
+    write_json(directory / SUMMARY_FILE, summary_data(run, pipeline))
+    return directory

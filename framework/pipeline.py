@@ -1,0 +1,349 @@
+"""Pipelines: YAML files that name one plugin per stage kind, with its parameters.
+
+Loading is strict and reports every problem at once, one line each, as
+``FILE: YAML.PATH: what was expected``. Only ``yaml.safe_load`` semantics are used (a SafeLoader
+subclass that also rejects duplicate keys). Validation builds every stage, so a missing model
+file is found before the first frame is read.
+"""
+
+from __future__ import annotations
+
+import copy
+import difflib
+import hashlib
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from trackfw.errors import UserError
+from trackfw.registry import Registry, unknown_name_message
+from trackfw.stages import STAGE_KINDS, Stage
+
+TOP_LEVEL_KEYS = ("name", "description", "input", "stages", "engine")
+STAGE_KEYS = ("type", "params")
+
+
+class EngineOptions(BaseModel):
+    """Options of the online loop itself (``engine:`` in a pipeline)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    box_size: float = Field(
+        80.0,
+        gt=0,
+        description="side in pixels of the box written around each head point in tracks.txt",
+    )
+    init: str = Field(
+        "auto",
+        pattern="^(auto|gt|detections)$",
+        description="targets on frame 1: 'gt' (gt.csv, as the paper), 'detections' (frame-1 detections), 'auto' (gt when present)",
+    )
+
+
+@dataclass
+class Pipeline:
+    """A validated pipeline.
+
+    Attributes:
+        name: the pipeline's name.
+        description: free text.
+        input: default input (``builtin:NAME`` or a path), or None.
+        stages: kind -> ``{"type": ..., "params": {...}}`` with validated, fully defaulted params.
+        engine: options of the online loop.
+        source: the YAML file, or None when built in memory.
+        config: the complete configuration as plain data (for hashing and summary.json).
+    """
+
+    name: str
+    description: str
+    input: str | None
+    stages: dict[str, dict[str, Any]]
+    engine: EngineOptions
+    source: Path | None = None
+    config: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def content_hash(self) -> str:
+        """Short hash of the resolved configuration (same config -> same hash)."""
+        canonical = json.dumps(self.config, sort_keys=True, default=str)
+        return hashlib.sha256(canonical.encode()).hexdigest()[:12]
+
+    def build(self, registry: Registry) -> dict[str, Stage]:
+        """Fresh stage instances, one per kind (call once per video)."""
+        return {kind: registry.build_stage(kind, spec) for kind, spec in self.stages.items()}
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """SafeLoader that rejects duplicate mapping keys instead of keeping the last one."""
+
+
+def _construct_mapping(
+    loader: _StrictLoader, node: yaml.MappingNode, deep: bool = False
+) -> dict[Any, Any]:
+    seen: dict[Any, int] = {}
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            raise yaml.constructor.ConstructorError(
+                None,
+                None,
+                f"duplicate key {key!r} (first on line {seen[key] + 1})",
+                key_node.start_mark,
+            )
+        seen[key] = key_node.start_mark.line
+    return dict(yaml.SafeLoader.construct_mapping(loader, node, deep=deep))
+
+
+_StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+def parse_yaml(text: str, source: str) -> Any:
+    """Parse YAML safely; duplicate keys and syntax errors become one-line UserErrors."""
+    loader = _StrictLoader(text)
+    try:
+        return loader.get_single_data()
+    except yaml.MarkedYAMLError as error:
+        mark = error.problem_mark
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
+        raise UserError(f"{source}: {where}invalid YAML: {error.problem}.") from None
+    except yaml.YAMLError as error:
+        raise UserError(f"{source}: invalid YAML: {error}.") from None
+    finally:
+        loader.dispose()
+
+
+def apply_overrides(data: dict[str, Any], overrides: Sequence[str], source: str) -> list[str]:
+    """Apply ``path.to.key=value`` overrides in place; returns problems (one line each)."""
+    problems: list[str] = []
+    for override in overrides:
+        path, separator, raw_value = override.partition("=")
+        keys = [key for key in path.strip().split(".") if key]
+        if not separator or not keys:
+            problems.append(
+                f"--set {override!r}: expected PATH=VALUE, e.g. stages.tracker.params.gate_px=40"
+            )
+            continue
+        try:
+            value = yaml.safe_load(raw_value) if raw_value.strip() else ""
+        except yaml.YAMLError:
+            value = raw_value
+        node: Any = data
+        for depth, key in enumerate(keys[:-1]):
+            child = node.get(key) if isinstance(node, dict) else None
+            if child is None and isinstance(node, dict):
+                child = node[key] = {}
+            if not isinstance(child, dict):
+                where = ".".join(keys[: depth + 1])
+                problems.append(f"--set {override!r}: {where} is not a mapping")
+                break
+            node = child
+        else:
+            node[keys[-1]] = value
+    return problems
+
+
+def _pydantic_problems(error: ValidationError, prefix: str, model: type[BaseModel]) -> list[str]:
+    lines = []
+    for item in error.errors():
+        location = ".".join(str(part) for part in item["loc"])
+        path = f"{prefix}.{location}" if location else prefix
+        if item["type"] == "extra_forbidden":
+            valid = list(model.model_fields)
+            close = difflib.get_close_matches(str(item["loc"][-1]), valid, n=2, cutoff=0.5)
+            hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+            lines.append(f"{path}: unknown parameter{hint} (valid: {', '.join(valid) or 'none'})")
+            continue
+        message = str(item["msg"])
+        message = message.replace("Input should be", "expected").replace("Value error, ", "")
+        if item["type"] == "missing":
+            lines.append(f"{path}: required value is missing")
+        else:
+            lines.append(f"{path}: {message}, got {item.get('input')!r}")
+    return lines
+
+
+def _unknown_key(path: str, key: Any, valid: Sequence[str]) -> str:
+    close = difflib.get_close_matches(str(key), valid, n=2, cutoff=0.5)
+    hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+    return f"{path}{'.' if path else ''}{key}: unknown key{hint} (valid: {', '.join(valid)})"
+
+
+def _validate_stage(
+    registry: Registry, kind: str, spec: Any, path: str, problems: list[str], inline: bool = False
+) -> dict[str, Any] | None:
+    """Check one stage spec; returns ``{"type", "params"}`` with fully defaulted params.
+
+    ``inline`` marks a nested stage whose parameters sit beside its ``type`` in the YAML
+    (``predictor: {type: ar, orders: [1, 2]}``), so their paths have no ``.params`` part.
+    """
+    params_path = path if inline else f"{path}.params"
+    if not isinstance(spec, Mapping):
+        problems.append(
+            f"{path}: expected a mapping with 'type' and optional 'params', got {spec!r}"
+        )
+        return None
+    for key in spec:
+        if key not in STAGE_KEYS:
+            problems.append(_unknown_key(path, key, STAGE_KEYS))
+    if inline and spec.get("params") is not None and not isinstance(spec.get("params"), Mapping):
+        problems.append(f"{path}: expected a mapping")
+        return None
+    type_name = spec.get("type")
+    if not isinstance(type_name, str) or not type_name:
+        problems.append(
+            f"{path}.type: expected the name of a {kind.replace('_', ' ')} plugin ({', '.join(registry.names(kind))})"
+        )
+        return None
+    if (kind, type_name) not in registry.stages:
+        problems.append(
+            f"{path}.type: {unknown_name_message(kind, type_name, registry.names(kind))}"
+        )
+        return None
+    entry = registry.stages[(kind, type_name)]
+    params = spec.get("params") or {}
+    if not isinstance(params, Mapping):
+        problems.append(f"{path}.params: expected a mapping of parameters, got {params!r}")
+        return None
+    params = dict(params)
+    resolved: dict[str, Any] = {}
+    for key, nested_kind in entry.cls.nested.items():
+        nested_spec = params.pop(key, None)
+        if nested_spec is None:
+            nested_spec = {"type": getattr(entry.cls, f"default_{key}", None)}
+        if not isinstance(nested_spec, Mapping):
+            problems.append(
+                f"{params_path}.{key}: expected a mapping with 'type', got {nested_spec!r}"
+            )
+            continue
+        nested_params = dict(nested_spec)
+        nested_type = nested_params.pop("type", None)
+        checked = _validate_stage(
+            registry,
+            nested_kind,
+            {"type": nested_type, "params": nested_params},
+            f"{params_path}.{key}",
+            problems,
+            inline=True,
+        )
+        if checked is not None:
+            resolved[key] = {"type": checked["type"], **checked["params"]}
+    try:
+        model = entry.cls.Params(**params)
+    except ValidationError as error:
+        problems.extend(_pydantic_problems(error, params_path, entry.cls.Params))
+        return None
+    except UserError as error:
+        problems.extend(f"{params_path}: {line}" for line in error.lines)
+        return None
+    return {"type": type_name, "params": {**model.model_dump(mode="json"), **resolved}}
+
+
+def load_pipeline(
+    path: str | Path,
+    registry: Registry,
+    overrides: Sequence[str] = (),
+    build_check: bool = True,
+) -> Pipeline:
+    """Read, override and validate a pipeline file.
+
+    Args:
+        path: the YAML file.
+        registry: the plugin registry.
+        overrides: ``PATH=VALUE`` strings (``--set``).
+        build_check: also construct every stage once, so that missing model files and other
+            construction-time problems are reported now, not after frames were read.
+
+    Raises:
+        UserError: with one line per problem, each naming the file and the YAML path.
+    """
+    path = Path(path)
+    source = str(path)
+    if not path.is_file():
+        raise UserError(f"{source}: pipeline file not found.")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        raise UserError(f"{source}: cannot read the pipeline ({error}).") from None
+    data = parse_yaml(text, source)
+    if data is None:
+        raise UserError(f"{source}: empty pipeline; expected a mapping with 'name' and 'stages'.")
+    if not isinstance(data, dict):
+        raise UserError(
+            f"{source}: expected a mapping with 'name' and 'stages' at the top level, got {type(data).__name__}."
+        )
+    return validate_pipeline(
+        data, registry, source=source, overrides=overrides, build_check=build_check, path=path
+    )
+
+
+def validate_pipeline(
+    data: dict[str, Any],
+    registry: Registry,
+    source: str = "<pipeline>",
+    overrides: Sequence[str] = (),
+    build_check: bool = True,
+    path: Path | None = None,
+) -> Pipeline:
+    """Validate a pipeline given as plain data (see :func:`load_pipeline`)."""
+    data = copy.deepcopy(data)
+    problems = apply_overrides(data, overrides, source)
+    for key in data:
+        if key not in TOP_LEVEL_KEYS:
+            problems.append(_unknown_key("", key, TOP_LEVEL_KEYS))
+    name = data.get("name")
+    if not isinstance(name, str) or not name.strip():
+        problems.append("name: expected a non-empty string naming the pipeline")
+    description = data.get("description", "")
+    if not isinstance(description, str):
+        problems.append(f"description: expected a string, got {description!r}")
+    default_input = data.get("input")
+    if default_input is not None and not isinstance(default_input, str):
+        problems.append(f"input: expected a path or builtin:NAME, got {default_input!r}")
+    engine = EngineOptions()
+    try:
+        engine = EngineOptions(**(data.get("engine") or {}))
+    except ValidationError as error:
+        problems.extend(_pydantic_problems(error, "engine", EngineOptions))
+    except TypeError:
+        problems.append("engine: expected a mapping")
+    stages_data = data.get("stages")
+    stages: dict[str, dict[str, Any]] = {}
+    if not isinstance(stages_data, Mapping):
+        problems.append(f"stages: expected a mapping with {', '.join(STAGE_KINDS)}")
+    else:
+        for kind in stages_data:
+            if kind not in STAGE_KINDS:
+                problems.append(_unknown_key("stages", kind, STAGE_KINDS))
+        for kind in STAGE_KINDS:
+            if kind not in stages_data:
+                problems.append(
+                    f"stages.{kind}: missing; expected {{type: ...}} ({', '.join(registry.names(kind))})"
+                )
+                continue
+            checked = _validate_stage(registry, kind, stages_data[kind], f"stages.{kind}", problems)
+            if checked is not None:
+                stages[kind] = checked
+    if problems:
+        raise UserError(*(f"{source}: {line}" for line in problems))
+    pipeline = Pipeline(
+        name=str(name),
+        description=str(description or ""),
+        input=default_input,
+        stages=stages,
+        engine=engine,
+        source=path,
+        config={"name": name, "stages": stages, "engine": engine.model_dump()},
+    )
+    if build_check:
+        for kind, spec in stages.items():
+            try:
+                registry.build_stage(kind, spec)
+            except UserError as error:
+                problems.extend(f"stages.{kind}: {line}" for line in error.lines)
+        if problems:
+            raise UserError(*(f"{source}: {line}" for line in problems))
+    return pipeline

@@ -1,0 +1,120 @@
+"""Glue between the command line and the engine: resolve inputs, check, run, write.
+
+Everything that can be wrong with the user's input is checked in :func:`prepare_run`, before any
+output file or folder is created.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from trackfw.dataset import list_videos, load_video
+from trackfw.engine import Engine, VideoRun, _check_ground_truth
+from trackfw.errors import UserError
+from trackfw.outputs import write_run
+from trackfw.pipeline import Pipeline, load_pipeline
+from trackfw.records import VideoContext
+from trackfw.registry import Registry, unknown_name_message
+
+BUILTIN_PREFIX = "builtin:"
+
+
+@dataclass
+class PreparedRun:
+    """A run whose pipeline and inputs were fully checked."""
+
+    pipeline: Pipeline
+    videos: list[VideoContext]
+    output: Path
+
+
+def resolve_input(registry: Registry, value: str, where: str) -> Path:
+    """A path from ``builtin:NAME`` or a filesystem path; ``where`` names the field for errors."""
+    if value.startswith(BUILTIN_PREFIX):
+        name = value[len(BUILTIN_PREFIX) :]
+        entry = registry.inputs.get(name)
+        if entry is None:
+            raise UserError(
+                f"{where}: {unknown_name_message('input', name, sorted(registry.inputs))}."
+            )
+        return Path(entry.factory())
+    path = Path(value).expanduser()
+    if not path.exists():
+        raise UserError(
+            f"{where}: {value!r} does not exist; expected a video file, a video folder or a dataset folder."
+        )
+    return path
+
+
+def prepare_run(
+    registry: Registry,
+    pipeline_path: Path,
+    input_value: str | None,
+    output: Path | None,
+    overrides: Sequence[str],
+) -> PreparedRun:
+    """Validate the pipeline, resolve and read every input video; writes nothing."""
+    pipeline = load_pipeline(pipeline_path, registry, overrides)
+    if input_value is not None:
+        source = resolve_input(registry, input_value, "--input")
+    elif pipeline.input is not None:
+        source = resolve_input(registry, pipeline.input, f"{pipeline_path}: input")
+    else:
+        raise UserError(
+            f"{pipeline_path}: input: missing; give --input or set 'input:' in the pipeline."
+        )
+    videos = [load_video(path) for path in list_videos(source)]
+    stages = pipeline.build(registry)
+    for video in videos:
+        _check_ground_truth(stages, video)
+    return PreparedRun(pipeline, videos, output or Path("runs") / pipeline.name)
+
+
+def run_prepared(
+    prepared: PreparedRun,
+    registry: Registry,
+    show_progress: bool = True,
+    console: Any = None,
+) -> list[tuple[VideoRun, Path]]:
+    """Run every video and write its outputs; returns the runs and their folders."""
+    engine = Engine(prepared.pipeline, registry)
+    results: list[tuple[VideoRun, Path]] = []
+    if not show_progress:
+        for video in prepared.videos:
+            run = engine.run_video(video)
+            results.append((run, write_run(run, prepared.pipeline, prepared.output / video.name)))
+        return results
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+
+    total = sum(video.n_frames for video in prepared.videos)
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("frames"),
+        TimeRemainingColumn(),
+        console=console,
+        transient=True,
+    ) as progress:
+        task = progress.add_task(prepared.pipeline.name, total=total)
+        done = 0
+        for video in prepared.videos:
+            progress.update(task, description=f"{prepared.pipeline.name}: {video.name}")
+            offset = done
+
+            def advance(t: int, offset: int = offset) -> None:
+                progress.update(task, completed=offset + t + 1)
+
+            run = engine.run_video(video, progress=advance)
+            done += video.n_frames
+            results.append((run, write_run(run, prepared.pipeline, prepared.output / video.name)))
+    return results

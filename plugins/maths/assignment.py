@@ -1,0 +1,83 @@
+"""Point-to-point association: gated Hungarian and greedy nearest neighbour (ALGORITHMS.md 1.3-1.4)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import linear_sum_assignment
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+#: Cost given to gated-out pairs before solving; any pair at this cost is dropped afterwards.
+FORBIDDEN_COST = 1.0e6
+
+
+def distance_matrix(predictions: FloatArray, detections: FloatArray) -> FloatArray:
+    """``(K, N)`` Euclidean distances between ``(K, 2)`` predictions and ``(N, 2)`` detections.
+
+    >>> distance_matrix(np.array([[0.0, 0.0]]), np.array([[3.0, 4.0], [0.0, 1.0]])).tolist()
+    [[5.0, 1.0]]
+    """
+    predictions = np.asarray(predictions, dtype=np.float64).reshape(-1, 2)
+    detections = np.asarray(detections, dtype=np.float64).reshape(-1, 2)
+    difference = predictions[:, None, :] - detections[None, :, :]
+    return np.sqrt(np.einsum("kni,kni->kn", difference, difference))
+
+
+def hungarian(cost: FloatArray, gate: float | None = None) -> IntArray:
+    """Optimal one-to-one assignment; returns ``(K,)`` column per row, ``-1`` when unassigned.
+
+    Entries above ``gate`` are set to a large constant before solving and any pair that still
+    lands on one is dropped, as section 1.3 prescribes.
+
+    >>> hungarian(np.array([[1.0, 9.0], [2.0, 3.0]])).tolist()
+    [0, 1]
+    >>> hungarian(np.array([[1.0, 90.0], [2.0, 80.0]]), gate=50.0).tolist()
+    [0, -1]
+    """
+    cost = np.asarray(cost, dtype=np.float64)
+    rows, columns = cost.shape
+    assignment = np.full(rows, -1, dtype=np.int64)
+    if rows == 0 or columns == 0:
+        return assignment
+    gated = cost if gate is None else np.where(cost > gate, FORBIDDEN_COST, cost)
+    row_index, column_index = linear_sum_assignment(gated)
+    for row, column in zip(row_index, column_index, strict=True):
+        if gate is not None and cost[row, column] > gate:
+            continue
+        assignment[row] = column
+    return assignment
+
+
+def greedy_nearest(cost: FloatArray, gate: float | None = None) -> IntArray:
+    """Greedy nearest-neighbour assignment (Kalman2): globally smallest pair first.
+
+    Ties break by the lower (row, column) index, for determinism.
+
+    >>> greedy_nearest(np.array([[1.0, 2.0], [1.5, 9.0]])).tolist()
+    [0, 1]
+    >>> greedy_nearest(np.array([[1.0, 2.0], [1.5, 9.0]]), gate=5.0).tolist()
+    [0, -1]
+    """
+    cost = np.asarray(cost, dtype=np.float64)
+    rows, columns = cost.shape
+    assignment = np.full(rows, -1, dtype=np.int64)
+    if rows == 0 or columns == 0:
+        return assignment
+    # A stable sort on the flattened (row-major) matrix gives the (row, column) tie-break.
+    order = np.argsort(cost, axis=None, kind="stable")
+    row_taken = np.zeros(rows, dtype=bool)
+    column_taken = np.zeros(columns, dtype=bool)
+    for flat in order:
+        row, column = divmod(int(flat), columns)
+        if gate is not None and cost[row, column] > gate:
+            break
+        if row_taken[row] or column_taken[column]:
+            continue
+        assignment[row] = column
+        row_taken[row] = True
+        column_taken[column] = True
+        if row_taken.all() or column_taken.all():
+            break
+    return assignment

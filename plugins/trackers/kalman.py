@@ -1,0 +1,107 @@
+"""The ``kalman`` segment tracker: Kalman filter + association (ALGORITHMS.md section 1).
+
+Kalman1 of the paper is ``association: hungarian``; Kalman2 is ``association: nearest``.
+The filter maths lives in :mod:`trackfw_plugins.maths.kalman`, the association in
+:mod:`trackfw_plugins.maths.assignment`.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+from trackfw.records import NO_MATCH, Detections, FloatArray, IntArray, TargetState, VideoContext
+from trackfw.stages import StageParams, Tracker
+from trackfw_plugins.maths.assignment import distance_matrix, greedy_nearest, hungarian
+from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R, KalmanBank
+
+
+class KalmanTrackerParams(StageParams):
+    """Parameters of the Kalman tracker; P0, Q and R default to the paper's values."""
+
+    association: Literal["hungarian", "nearest"] = Field(
+        "hungarian", description="'hungarian' (Kalman1) or greedy 'nearest' neighbour (Kalman2)"
+    )
+    gate_px_at_1080: float | None = Field(
+        50.0,
+        gt=0.0,
+        description="association gate in pixels at 1080p, scaled by height/1080; null = no gate",
+    )
+    P0: float = Field(PAPER_P0, gt=0.0, description="initial state variance (P0 = P0 * I4)")
+    Q: float = Field(PAPER_Q, gt=0.0, description="transition noise variance (Q = Q * I4)")
+    R: float = Field(PAPER_R, gt=0.0, description="observation noise variance (R = R * I2)")
+    reinit_at_b: bool = Field(
+        True,
+        description="after an interval, restart each filter at its frame-b position with zero velocity and P0",
+    )
+
+
+class KalmanTracker(Tracker):
+    """Constant-velocity Kalman filters with Hungarian or nearest-neighbour association."""
+
+    name = "kalman"
+    Params = KalmanTrackerParams
+
+    def start(self, video: VideoContext) -> None:
+        params = self.settings
+        self.gate = (
+            None
+            if params.gate_px_at_1080 is None
+            else params.gate_px_at_1080 * video.height / 1080.0
+        )
+        self.bank = KalmanBank.start(np.zeros((0, 2)), params.P0, params.Q, params.R)
+        self.target_ids = np.zeros(0, dtype=np.int64)
+        self.matched = np.zeros(0, dtype=np.int64)
+
+    @property
+    def settings(self) -> KalmanTrackerParams:
+        assert isinstance(self.params, KalmanTrackerParams)
+        return self.params
+
+    def initialise(self, t: int, target_ids: IntArray, positions: FloatArray) -> None:
+        params = self.settings
+        self.target_ids = np.asarray(target_ids, dtype=np.int64)
+        self.bank = KalmanBank.start(positions, params.P0, params.Q, params.R)
+        self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
+
+    def associate(self, predicted: FloatArray, detections: Detections) -> IntArray:
+        """Row of ``detections`` for each predicted target, ``-1`` when none (gated)."""
+        cost = distance_matrix(predicted, detections.points)
+        if self.settings.association == "nearest":
+            return greedy_nearest(cost, self.gate)
+        return hungarian(cost, self.gate)
+
+    def step(self, t: int, detections: Detections) -> None:
+        self.bank.predict()
+        rows = self.associate(self.bank.positions, detections) if len(detections) else None
+        self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
+        if rows is None:
+            return
+        targets = np.flatnonzero(rows >= 0)
+        self.bank.correct(targets, detections.points[rows[targets]])
+        self.matched[targets] = detections.index[rows[targets]]
+
+    def reinitialise(self, t: int, positions: FloatArray, matched_detection: IntArray) -> None:
+        params = self.settings
+        positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+        if params.reinit_at_b:
+            # The old velocity belongs to the pre-interval camera pose (ALGORITHMS.md 1.5).
+            self.bank = KalmanBank.start(positions, params.P0, params.Q, params.R)
+        else:
+            self.bank.predict()
+            self.bank.means[:, :2] = positions
+        self.matched = np.asarray(matched_detection, dtype=np.int64).copy()
+
+    def states(self) -> list[TargetState]:
+        means, covariances = self.bank.means, self.bank.covariances
+        return [
+            TargetState(
+                target_id=int(target_id),
+                position=means[row, :2].copy(),
+                velocity=means[row, 2:].copy(),
+                covariance=covariances[row],
+                matched_detection=int(self.matched[row]),
+            )
+            for row, target_id in enumerate(self.target_ids)
+        ]

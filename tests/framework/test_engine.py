@@ -1,0 +1,277 @@
+"""The online loop: intervals, missing detections, targets leaving the image, corrupt frames."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from types import ModuleType
+
+import cv2
+import numpy as np
+import pytest
+from trackfw.dataset import load_video
+from trackfw.engine import Engine
+from trackfw.hookspecs import hookimpl
+from trackfw.outputs import write_run
+from trackfw.pipeline import load_pipeline
+from trackfw.records import Detections, FrameData
+from trackfw.registry import Registry, load_registry
+from trackfw.stages import Detector
+
+
+def _run(
+    video_dir: Path,
+    pipeline_path: Path,
+    overrides: list[str] | None = None,
+    registry: Registry | None = None,
+):
+    registry = registry or load_registry()
+    pipeline = load_pipeline(pipeline_path, registry, overrides or [])
+    return Engine(pipeline, registry).run_video(load_video(video_dir)), pipeline
+
+
+def _tracked(run) -> dict[int, dict[int, tuple[float, float]]]:
+    frames: dict[int, dict[int, tuple[float, float]]] = {}
+    for t, target_id, x, y in run.tracks:
+        frames.setdefault(t, {})[target_id] = (x, y)
+    return frames
+
+
+def test_clean_video_is_tracked_exactly_and_gap_relinks(points_video, pipeline_file) -> None:
+    # No pose change: TR prediction + Hungarian at b must recover every identity.
+    video = points_video(
+        n_frames=150, intervals=[(60, 80)], rotation_degrees=0.0, scale=1.0, shift=(0.0, 0.0)
+    )
+    run, _ = _run(video, pipeline_file())
+    truth = load_video(video).ground_truth
+    tracked = _tracked(run)
+    assert len(run.gaps) == 1 and run.gaps[0].resolved
+    assert run.gaps[0].interval.a == 58 and run.gaps[0].interval.b == 80
+    for t, targets in truth.targets.items():
+        for target_id, (x, y) in targets.items():
+            tx, ty = tracked[t][target_id]
+            assert abs(tx - x) < 5 and abs(ty - y) < 5, (t, target_id)
+    # Nothing is reported on info-less frames.
+    assert not any(59 <= t <= 79 for t in tracked)
+
+
+def test_several_intervals_interval_at_start_and_at_end(points_video, pipeline_file) -> None:
+    video = points_video(n_frames=120, intervals=[(2, 10), (40, 50), (100, 120)])
+    run, _ = _run(video, pipeline_file())
+    assert [gap.resolved for gap in run.gaps] == [True, True, False]
+    assert run.gaps[0].interval.a == 0 and run.gaps[0].interval.b == 10
+    assert run.gaps[2].interval.b == 120
+    assert max(t for t, *_ in run.tracks) == 98
+    assert sum(1 for r in run.frames if r.infoless) == 9 + 11 + 21
+
+
+def test_fewer_and_zero_detections(points_video, pipeline_file) -> None:
+    video = points_video(n_frames=80, intervals=[(30, 40)])
+    run, _ = _run(video, pipeline_file(), ["stages.detector.params.miss_rate=0.5"])
+    assert any(len(r.detections) < 8 for r in run.frames if r.detections is not None)
+    run, _ = _run(video, pipeline_file(), ["stages.detector.params.miss_rate=1.0"])
+    assert all(len(r.detections) == 0 for r in run.frames if r.detections is not None)
+    # Targets still reported (predicted) on every normal frame, and the gap resolved without detections.
+    assert run.gaps[0].resolved and all(d is None for d in run.gaps[0].matched_detection)
+    assert len({t for t, *_ in run.tracks}) == 80 - 11
+
+
+def test_targets_outside_the_image_are_not_reported(tmp_path: Path, pipeline_file) -> None:
+    from trackfw_plugins.datasets.points import make_points_video
+
+    video = make_points_video(
+        tmp_path / "v", n_frames=300, intervals=[], width=200, height=200, n_targets=3, n_others=0
+    )
+    run, _ = _run(video, pipeline_file())
+    assert all(0 <= x < 200 and 0 <= y < 200 for _, _, x, y in run.tracks)
+    per_frame = [len([row for row in run.tracks if row[0] == t]) for t in (0, 299)]
+    assert per_frame[0] == 3 and per_frame[1] < 3
+
+
+class PixelMeanDetector(Detector):
+    """Test detector that needs pixels: one detection at the image centre if the frame is not black."""
+
+    name = "pixel-mean"
+    uses_pixels = True
+
+    def detect(self, frame: FrameData) -> Detections:
+        assert frame.image is not None
+        height, width = frame.image.shape[:2]
+        return Detections.from_points([[width / 2, height / 2]] if frame.image.mean() > 1 else [])
+
+
+def _pixel_plugin() -> ModuleType:
+    module = ModuleType("pixel_plugin")
+
+    @hookimpl
+    def trackfw_register_stages(registry: Registry) -> None:
+        registry.add_detector(PixelMeanDetector)
+
+    module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
+    return module
+
+
+def test_corrupt_video_tail_is_tracked_up_to_the_corruption(tmp_path: Path, pipeline_file) -> None:
+    video_dir = tmp_path / "clip"
+    video_dir.mkdir()
+    # MJPG in AVI keeps its index optional, so a cut file still decodes up to the cut.
+    writer = cv2.VideoWriter(
+        str(video_dir / "clip.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 25, (64, 48)
+    )
+    for t in range(60):
+        frame = np.full((48, 64, 3), 40 + t, dtype=np.uint8)
+        writer.write(frame)
+    writer.release()
+    data = (video_dir / "clip.avi").read_bytes()
+    (video_dir / "clip.avi").write_bytes(data[: len(data) // 2])  # cut the file in the middle
+    (video_dir / "meta.json").write_text(
+        json.dumps({"n_frames": 60, "width": 64, "height": 48, "fps": 25})
+    )
+    (video_dir / "gt.csv").write_text("frame,id,x,y\n1,1,32,24\n")
+    registry = load_registry(extra_modules=[("pixel", _pixel_plugin())])
+    path = (
+        pipeline_file()
+        .read_text()
+        .replace("detector:    {type: oracle}", "detector:    {type: pixel-mean}")
+    )
+    run, pipeline = _run(video_dir, pipeline_file(path, "pixel.yaml"), registry=registry)
+    statuses = [r.status for r in run.frames]
+    assert statuses[0] == "ok" and statuses[-1] == "unread"
+    read = statuses.count("ok")
+    assert 0 < read < 60 and statuses == ["ok"] * read + ["unread"] * (60 - read)
+    assert max(t for t, *_ in run.tracks) == read - 1
+    out = write_run(run, pipeline, tmp_path / "out" / "clip")
+    rows = list(csv.DictReader((out / "frames.csv").open()))
+    assert [row["status"] for row in rows].count("unread") == 60 - read
+
+
+def test_unreadable_image_in_folder_is_recorded_and_skipped(tmp_path: Path, pipeline_file) -> None:
+    video_dir = tmp_path / "seq"
+    (video_dir / "img1").mkdir(parents=True)
+    for t in range(1, 11):
+        cv2.imwrite(str(video_dir / "img1" / f"{t:06d}.jpg"), np.full((48, 64, 3), 120, np.uint8))
+    (video_dir / "img1" / "000005.jpg").write_bytes(b"not a jpeg")
+    (video_dir / "gt.csv").write_text("frame,id,x,y\n1,1,32,24\n")
+    registry = load_registry(extra_modules=[("pixel", _pixel_plugin())])
+    path = (
+        pipeline_file()
+        .read_text()
+        .replace("detector:    {type: oracle}", "detector:    {type: pixel-mean}")
+    )
+    run, _ = _run(video_dir, pipeline_file(path, "pixel.yaml"), registry=registry)
+    assert [r.status for r in run.frames].count("unreadable") == 1
+    assert run.frames[4].status == "unreadable"
+    assert 4 not in {t for t, *_ in run.tracks} and 5 in {t for t, *_ in run.tracks}
+
+
+def test_outputs_are_written_and_consistent(points_video, pipeline_file, tmp_path: Path) -> None:
+    video = points_video(n_frames=100, intervals=[(40, 60)])
+    run, pipeline = _run(video, pipeline_file())
+    out = write_run(run, pipeline, tmp_path / "out" / "video")
+    assert {p.name for p in out.iterdir()} == {
+        "tracks.txt",
+        "frames.csv",
+        "gaps.json",
+        "summary.json",
+    }
+    rows = [line.split(",") for line in (out / "tracks.txt").read_text().splitlines()]
+    assert len(rows) == len(run.tracks) and all(len(row) == 10 for row in rows)
+    first = rows[0]
+    assert first[0] == "1" and float(first[4]) == 80.0
+    gaps = json.loads((out / "gaps.json").read_text())
+    assert gaps[0]["a"] == 39 and gaps[0]["b"] == 61 and gaps[0]["resolved"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["frames_infoless"] == 21 and summary["pipeline_hash"] == pipeline.content_hash
+    frames = list(csv.DictReader((out / "frames.csv").open()))
+    assert len(frames) == 100 and frames[45]["infoless"] == "1" and frames[0]["infoless"] == "0"
+    assert frames[60]["ms_gap_matcher"] != "" and frames[61]["ms_gap_matcher"] == ""
+
+
+def test_oracle_stage_without_ground_truth_is_a_clear_error(
+    tmp_path: Path, pipeline_file, capsys
+) -> None:
+    from trackfw.cli import main
+
+    video_dir = tmp_path / "bare"
+    video_dir.mkdir()
+    (video_dir / "meta.json").write_text(json.dumps({"n_frames": 5, "width": 64, "height": 48}))
+    assert (
+        main(
+            [
+                "run",
+                str(pipeline_file()),
+                "--input",
+                str(video_dir),
+                "--output",
+                str(tmp_path / "o"),
+            ]
+        )
+        == 2
+    )
+    assert "needs ground truth" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("association", ["hungarian", "nearest"])
+def test_both_associations_run(points_video, pipeline_file, association: str) -> None:
+    video = points_video(n_frames=60, intervals=[(20, 30)])
+    run, _ = _run(video, pipeline_file(), [f"stages.tracker.params.association={association}"])
+    assert len(run.tracks) > 0
+
+
+def test_engine_accepts_callable_progress(points_video, pipeline_file) -> None:
+    seen: list[int] = []
+    registry = load_registry()
+    pipeline = load_pipeline(pipeline_file(), registry)
+    Engine(pipeline, registry).run_video(
+        load_video(points_video(n_frames=30, intervals=[])), progress=seen.append
+    )
+    assert seen == list(range(30))
+
+
+def test_dataset_with_broken_ground_truth_names_file_and_line(
+    tmp_path: Path, pipeline_file, capsys
+) -> None:
+    from trackfw.cli import main
+
+    video_dir = tmp_path / "v"
+    video_dir.mkdir()
+    (video_dir / "meta.json").write_text(json.dumps({"n_frames": 5, "width": 64, "height": 48}))
+    (video_dir / "gt.csv").write_text("frame,id,x,y\n1,1,10,10\n1,1,12,12\n")
+    assert (
+        main(
+            [
+                "run",
+                str(pipeline_file()),
+                "--input",
+                str(video_dir),
+                "--output",
+                str(tmp_path / "o"),
+            ]
+        )
+        == 2
+    )
+    assert "gt.csv: line 3: id 1 appears twice in frame 1" in capsys.readouterr().err
+    (video_dir / "gt.csv").write_text("frame,id,x,y\n1,1,nan,10\n")
+    assert (
+        main(
+            [
+                "run",
+                str(pipeline_file()),
+                "--input",
+                str(video_dir),
+                "--output",
+                str(tmp_path / "o"),
+            ]
+        )
+        == 2
+    )
+    assert "line 2: x is 'nan'; expected a finite number" in capsys.readouterr().err
+
+
+def test_init_from_detections_without_gt(tmp_path: Path, pipeline_file, points_video) -> None:
+    video = points_video(n_frames=30, intervals=[])
+    text = pipeline_file().read_text() + "engine: {init: detections}\n"
+    run, _ = _run(video, pipeline_file(text, "det.yaml"))
+    assert run.initialised_from == "detections" and len(run.target_ids) == 14
