@@ -112,6 +112,33 @@ def _initial_targets(
     return ids, detections.points.copy(), "detections"
 
 
+def _histories(segment: list[FloatArray], count: int) -> list[FloatArray]:
+    """Per target ``(n, 2)`` positions from per frame ``(K, 2)`` positions."""
+    if not segment:
+        return [np.zeros((0, 2)) for _ in range(count)]
+    stacked = np.stack(segment)  # (n, K, 2)
+    return [stacked[:, k, :].copy() for k in range(count)]
+
+
+def _inside_image(
+    reported: list[tuple[int, FloatArray]], target_ids: np.ndarray, width: int, height: int
+) -> list[tuple[int, int, float, float]]:
+    """``(t, id, x, y)`` rows for targets inside the image (others are not reported)."""
+    rows: list[tuple[int, int, float, float]] = []
+    for t, positions in reported:
+        inside = (
+            (positions[:, 0] >= 0)
+            & (positions[:, 0] < width)
+            & (positions[:, 1] >= 0)
+            & (positions[:, 1] < height)
+        )
+        rows.extend(
+            (t, int(target_ids[k]), float(positions[k, 0]), float(positions[k, 1]))
+            for k in np.flatnonzero(inside)
+        )
+    return rows
+
+
 class Engine:
     """Runs a validated pipeline over videos."""
 
@@ -142,10 +169,11 @@ class Engine:
         clock = time.perf_counter
 
         frames: list[FrameRecord] = []
-        tracks: list[tuple[int, int, float, float]] = []
+        reported: list[tuple[int, FloatArray]] = []
         gaps: list[GapRecord] = []
         target_ids = np.zeros(0, dtype=np.int64)
-        histories: list[list[tuple[float, float]]] = []
+        # Positions of every target on each normal frame of the current segment.
+        segment: list[FloatArray] = []
         initialised_from = ""
         last_normal_t: int | None = None
         last_normal_image: np.ndarray | None = None
@@ -161,9 +189,10 @@ class Engine:
             frame = FrameData(t, image, video)
             record = FrameRecord(t, "ok")
             tick = clock()
-            raw = detector.detect(frame)
+            detections = detector.detect(frame)
             # The stable index is the position in the detector's own output.
-            detections = Detections(raw.points, raw.scores, raw.boxes)
+            if not np.array_equal(detections.index, np.arange(len(detections))):
+                detections = Detections(detections.points, detections.scores, detections.boxes)
             tock = clock()
             record.milliseconds["detector"] = (tock - tick) * 1e3
             decision = classifier.classify(frame, detections)
@@ -182,7 +211,6 @@ class Engine:
                     video, self.pipeline.engine.init, t, detections
                 )
                 tracker.initialise(t, target_ids, positions)
-                histories = [[] for _ in target_ids]
                 record.milliseconds["tracker"] = (clock() - tick) * 1e3
             elif infoless:
                 interval_open = True
@@ -193,7 +221,7 @@ class Engine:
                 problem = GapProblem(
                     interval=interval,
                     target_ids=target_ids,
-                    histories=[np.asarray(h, dtype=np.float64).reshape(-1, 2) for h in histories],
+                    histories=_histories(segment, len(target_ids)),
                     states=tracker.states(),
                     detections=detections,
                     frame_a=last_normal_image,
@@ -221,18 +249,15 @@ class Engine:
                         diagnostics=solution.diagnostics,
                     )
                 )
-                histories = [[] for _ in target_ids]
+                segment = []
                 interval_open = False
             else:
                 tracker.step(t, detections)
                 record.milliseconds["tracker"] = (clock() - tick) * 1e3
 
-            states = tracker.states()
-            for history, state in zip(histories, states, strict=True):
-                x, y = float(state.position[0]), float(state.position[1])
-                history.append((x, y))
-                if 0.0 <= x < width and 0.0 <= y < height:
-                    tracks.append((t, int(state.target_id), x, y))
+            positions = tracker.positions()
+            segment.append(positions)
+            reported.append((t, positions))
             last_normal_t = t
             if decode:
                 last_normal_image = image
@@ -251,7 +276,7 @@ class Engine:
         return VideoRun(
             video=video,
             target_ids=[int(i) for i in target_ids],
-            tracks=tracks,
+            tracks=_inside_image(reported, target_ids, width, height),
             frames=frames,
             gaps=gaps,
             initialised_from=initialised_from,

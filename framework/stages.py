@@ -134,6 +134,15 @@ class Tracker(Stage):
     def states(self) -> list[TargetState]:
         """The current state of every target, in the order of ``initialise``."""
 
+    def positions(self) -> FloatArray:
+        """``(K, 2)`` current positions; override when it can be cheaper than :meth:`states`.
+
+        The engine calls this on every frame and :meth:`states` only at a gap.
+        """
+        return np.array([state.position for state in self.states()], dtype=np.float64).reshape(
+            -1, 2
+        )
+
 
 class Predictor(Stage):
     """Predicts where the targets are on frame ``b`` from their history up to ``a``."""

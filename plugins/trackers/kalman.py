@@ -93,6 +93,9 @@ class KalmanTracker(Tracker):
             self.bank.means[:, :2] = positions
         self.matched = np.asarray(matched_detection, dtype=np.int64).copy()
 
+    def positions(self) -> FloatArray:
+        return self.bank.means[:, :2].copy()
+
     def states(self) -> list[TargetState]:
         means, covariances = self.bank.means, self.bank.covariances
         return [
