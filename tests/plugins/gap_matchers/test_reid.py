@@ -1,0 +1,48 @@
+"""The re-ID gap matcher re-links people by appearance when their positions are shuffled."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from trackfw.records import Detections, GapProblem, Interval, TargetState, VideoContext
+from trackfw.registry import load_registry
+
+COLOURS = [(200, 40, 40), (40, 200, 40), (40, 40, 200), (200, 200, 40)]
+
+
+def _frame(points: np.ndarray, colours: list[tuple[int, int, int]], seed: int) -> np.ndarray:
+    random = np.random.default_rng(seed)
+    image = random.integers(90, 110, (360, 640, 3)).astype(np.uint8)
+    for (x, y), colour in zip(points.astype(int), colours, strict=True):
+        image[y - 8 : y + 8, x - 6 : x + 6] = (30, 30, 30)  # head
+        image[y + 8 : y + 100, x - 14 : x + 14] = colour  # body
+    return image
+
+
+@pytest.mark.parametrize("descriptor", ["lomo", "gog"])
+def test_reid_relinks_shuffled_people(descriptor: str) -> None:
+    at_a = np.array([[100.0, 80.0], [220.0, 90.0], [340.0, 85.0], [460.0, 95.0]])
+    order = [2, 0, 3, 1]
+    at_b = np.array([[150.0, 120.0], [300.0, 110.0], [420.0, 130.0], [560.0, 100.0]])
+    frame_a = _frame(at_a, COLOURS, 1)
+    frame_b = _frame(at_b, [COLOURS[i] for i in order], 2)
+    video = VideoContext(name="v", path="v", n_frames=10, width=640, height=360)
+    problem = GapProblem(
+        interval=Interval(2, 8),
+        target_ids=np.arange(1, 5),
+        histories=[p[None, :] for p in at_a],
+        states=[TargetState(i + 1, p, np.zeros(2)) for i, p in enumerate(at_a)],
+        detections=Detections.from_points(at_b),
+        frame_a=frame_a,
+        frame_b=frame_b,
+        video=video,
+    )
+    matcher = load_registry().build_stage(
+        "gap_matcher", {"type": "reid", "params": {"descriptor": descriptor}}
+    )
+    solution = matcher.match(problem)
+    # Target i wears COLOURS[i]; detection j wears COLOURS[order[j]].
+    expected = [order.index(i) for i in range(4)]
+    assert solution.matched_detection.tolist() == expected
+    assert np.allclose(solution.positions, at_b[expected])

@@ -1,0 +1,134 @@
+"""Tests of the GOG descriptor (ALGORITHMS.md §8.2)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from trackfw_plugins.maths.gog import (
+    gaussian_embedding_log,
+    gog_block_sizes,
+    gog_colour_descriptor,
+    gog_descriptor,
+    half_vectorise,
+    normalise_gog,
+    patch_gaussians,
+    pixel_features,
+)
+from trackfw_plugins.maths.reid_crop import reid_distance_matrix
+
+
+def _person(rng: np.random.Generator) -> np.ndarray:
+    background = cv2.resize(
+        rng.integers(60, 200, size=(8, 4, 3), dtype=np.uint8), (48, 128),
+        interpolation=cv2.INTER_LINEAR,
+    )
+    image = background.copy()
+    shirt, trousers = rng.integers(0, 256, size=(2, 3))
+    image[20:70, 8:40] = shirt
+    image[70:125, 12:36] = trousers
+    period = int(rng.integers(3, 9))
+    image[20:70:period, 8:40] = (shirt // 2).astype(np.uint8)
+    return image
+
+
+def test_dimensions() -> None:
+    image = _person(np.random.default_rng(0))[..., ::-1].copy()
+    assert gog_colour_descriptor(image, "rgb").shape == (7567,)
+    assert gog_colour_descriptor(image, "nrng").shape == (4921,)
+    assert sum(gog_block_sizes()) == 27622
+    flat = gog_descriptor(np.full((128, 48, 3), 90, dtype=np.uint8))
+    assert flat.shape == (27622,)
+    assert np.all(np.isfinite(flat))  # a constant crop must not break the SPD embedding
+
+
+def test_pixel_features() -> None:
+    image = np.zeros((6, 4, 3), dtype=np.uint8)
+    image[:, 2:] = 255  # a vertical edge: gradient along +x only
+    features = pixel_features(image, "rgb")
+    assert features.shape == (6, 4, 8)
+    np.testing.assert_allclose(features[:, 0, 0], np.arange(1, 7) / 6)
+    # Magnitude at the edge goes fully into the 0° bin.
+    assert features[2, 1, 1] > 0 and features[2, 1, 2:5].sum() == 0
+    np.testing.assert_allclose(features[0, 3, 5:], 1.0)
+    assert pixel_features(image, "nrng").shape == (6, 4, 7)
+    lab = pixel_features(image, "lab")
+    np.testing.assert_allclose(lab[0, 3, 5:], [1.0, 0.5, 0.5], atol=0.01)
+    with pytest.raises(ValueError, match="colour space"):
+        pixel_features(image, "xyz")
+
+
+def test_half_vectorisation_keeps_the_frobenius_norm() -> None:
+    matrix = np.random.default_rng(1).normal(size=(5, 5))
+    symmetric = matrix + matrix.T
+    vector = half_vectorise(symmetric)
+    assert vector.shape == (15,)
+    assert np.linalg.norm(vector) == pytest.approx(np.linalg.norm(symmetric))
+
+
+def test_embedding_log_of_standard_gaussian_is_zero_and_matches_scipy() -> None:
+    from scipy.linalg import logm
+
+    assert np.allclose(gaussian_embedding_log(np.zeros((1, 3)), np.eye(3)[None]), 0.0)
+    rng = np.random.default_rng(2)
+    factor = rng.normal(size=(3, 3))
+    covariance = factor @ factor.T + 0.1 * np.eye(3)
+    mean = rng.normal(size=3)
+    embedded = np.block([[covariance + np.outer(mean, mean), mean[:, None]], [mean[None], 1.0]])
+    embedded /= np.linalg.det(covariance) ** (1 / 4)
+    expected = half_vectorise(np.real(logm(embedded)))
+    np.testing.assert_allclose(gaussian_embedding_log(mean[None], covariance[None])[0], expected,
+                               atol=1e-8)
+
+
+def test_patch_gaussians_match_direct_statistics() -> None:
+    rng = np.random.default_rng(3)
+    features = rng.uniform(size=(12, 10, 2))
+    vectors = patch_gaussians(features)
+    assert vectors.shape == (6, 5, 6)
+    for grid_row, grid_column in [(0, 0), (3, 2), (5, 4)]:
+        row, column = 2 * grid_row, 2 * grid_column
+        window = features[max(row - 2, 0) : row + 3, max(column - 2, 0) : column + 3]
+        samples = window.reshape(-1, 2)
+        covariance = np.cov(samples, rowvar=False)
+        covariance += 0.001 * max(np.trace(covariance), 0.01) * np.eye(2)
+        expected = gaussian_embedding_log(samples.mean(axis=0)[None], covariance[None])[0]
+        np.testing.assert_allclose(vectors[grid_row, grid_column], expected, atol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def query_and_gallery() -> tuple[np.ndarray, np.ndarray]:
+    """Raw GOG of 4 people and of a shifted, noised copy of each (computed once)."""
+    rng = np.random.default_rng(9)
+    people = [_person(rng) for _ in range(4)]
+    query = np.stack([gog_descriptor(person) for person in people])
+    gallery = []
+    for person in people:
+        shifted = np.roll(person, shift=(2, 1), axis=(0, 1)).astype(np.float64)
+        noisy = np.clip(shifted + rng.normal(0, 6, size=person.shape), 0, 255).astype(np.uint8)
+        gallery.append(gog_descriptor(noisy))
+    return query, np.stack(gallery)
+
+
+def test_normalised_blocks_have_unit_norm(
+    query_and_gallery: tuple[np.ndarray, np.ndarray],
+) -> None:
+    raw = np.vstack(query_and_gallery)
+    assert raw.shape == (8, 27622)
+    normalised = normalise_gog(raw)
+    start = 0
+    for size in gog_block_sizes():
+        np.testing.assert_allclose(np.linalg.norm(normalised[:, start : start + size], axis=1), 1)
+        start += size
+    # Centred on the pooled mean: the normalised descriptors are not all in one orthant.
+    assert normalised.min() < 0 < normalised.max()
+
+
+def test_same_person_ranks_first(query_and_gallery: tuple[np.ndarray, np.ndarray]) -> None:
+    query, gallery = query_and_gallery
+    # Two targets against all four candidates (two of them distractors).
+    distances = reid_distance_matrix(query[:2], gallery, gog_block_sizes())
+    assert distances.shape == (2, 4)
+    np.testing.assert_array_equal(distances.argmin(axis=1), [0, 1])
+    everyone = reid_distance_matrix(query, gallery, gog_block_sizes())
+    np.testing.assert_array_equal(everyone.argmin(axis=1), np.arange(4))
