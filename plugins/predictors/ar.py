@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 from trackfw.records import GapProblem, Prediction
 from trackfw.stages import Predictor, StageParams
 from trackfw_plugins.maths.autoregressive import ArSettings, forecast_ar
@@ -72,6 +72,15 @@ class ArPredictor(Predictor):
                 raise ValueError(f"AR orders must be distinct, got {orders}")
             return orders
 
+        @model_validator(mode="after")
+        def _check_shrink(self) -> ArPredictor.Params:
+            if not self.shrink_to < self.stability_rho:
+                raise ValueError(
+                    f"shrink_to ({self.shrink_to}) must be below stability_rho "
+                    f"({self.stability_rho})"
+                )
+            return self
+
         def settings(self) -> ArSettings:
             """The settings for :func:`forecast_ar`."""
             return ArSettings(
@@ -87,7 +96,6 @@ class ArPredictor(Predictor):
 
     def __init__(self, params: StageParams | None = None, **nested: Any) -> None:
         super().__init__(params, **nested)
-        # Fail at configuration time, not at the first gap, on inconsistent shrink settings.
         self._settings = self.params.settings()
 
     def predict(self, problem: GapProblem) -> Sequence[Prediction]:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from trackfw.records import Detections, GapProblem, Interval, TargetState, VideoContext
 from trackfw.registry import load_registry
 

@@ -50,6 +50,8 @@ def test_params_are_validated() -> None:
         ArPredictor.Params(orders=[11])
     with pytest.raises(pydantic.ValidationError):
         ArPredictor.Params(series="velocity")
+    with pytest.raises(pydantic.ValidationError, match="shrink_to"):
+        ArPredictor.Params(shrink_to=0.995)
     for name, field in ArPredictor.Params.model_fields.items():
         assert field.description, name
 
