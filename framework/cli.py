@@ -167,6 +167,20 @@ def plugins_command(
             console.print(f"  {failure.source.name} ({failure.source.package}): {failure.error}")
 
 
+def command_group(app: typer.Typer, name: str, help_text: str) -> typer.Typer:
+    """The sub-command group ``name`` of ``app``, created on first use.
+
+    Several plugins may add commands to one group (``trackfw train classifier`` and
+    ``trackfw train detector`` come from different plugins).
+    """
+    for info in app.registered_groups:
+        if info.name == name and isinstance(info.typer_instance, typer.Typer):
+            return info.typer_instance
+    group = typer.Typer(help=help_text, no_args_is_help=True)
+    app.add_typer(group, name=name)
+    return group
+
+
 def build_app(registry: Registry | None = None) -> typer.Typer:
     """The root typer application with core and plugin commands."""
     app = typer.Typer(

@@ -78,6 +78,8 @@ class Registry:
     inputs: dict[str, InputEntry] = field(default_factory=dict)
     failures: list[PluginFailure] = field(default_factory=list)
     plugin_manager: pluggy.PluginManager | None = None
+    #: pluggy plugin name -> where it came from, for every plugin that loaded.
+    sources: dict[str, PluginSource] = field(default_factory=dict)
     _current: PluginSource = field(default=PluginSource("<direct>", "<direct>", ""), repr=False)
 
     # -------------------------------------------------------------------------- registration
@@ -212,7 +214,7 @@ def load_registry(
     manager = pluggy.PluginManager(hookspecs.PROJECT_NAME)
     manager.add_hookspecs(hookspecs)
     registry = Registry(plugin_manager=manager)
-    sources: dict[str, PluginSource] = {}
+    sources = registry.sources
 
     candidates: list[tuple[PluginSource, Callable[[], ModuleType]]] = []
     if use_entry_points:
@@ -290,13 +292,12 @@ def call_command_hooks(registry: Registry, app: Any) -> None:
     """Let every loaded plugin add its CLI commands; failures are recorded, not raised."""
     if registry.plugin_manager is None:
         return
-    sources = {f"{f.source.package}:{f.source.name}": f.source for f in registry.failures}
     for implementation in registry.plugin_manager.hook.trackfw_register_commands.get_hookimpls():
         try:
             implementation.function(app=app)
         except Exception as error:
             name = implementation.plugin_name
-            source = sources.get(name) or PluginSource(name, name.split(":")[0], "")
+            source = registry.sources.get(name) or PluginSource(name, name.split(":")[0], "")
             registry.failures.append(
                 PluginFailure(source, f"trackfw_register_commands failed: {_one_line(error)}")
             )

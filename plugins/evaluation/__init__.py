@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from trackfw.hookspecs import hookimpl
-from trackfw.registry import Registry
 
 TRACKFW_PLUGIN_API = 1
 
 
 @hookimpl
-def trackfw_register_stages(registry: Registry) -> None:
-    """Evaluation registers no stage."""
+def trackfw_register_commands(app: Any) -> None:
+    """Add ``trackfw eval``."""
+    from trackfw_plugins.evaluation.cli import register
+
+    register(app)

@@ -1,0 +1,92 @@
+"""Frame-level evaluation of the info-less classifier: precision, recall, F1, misclassified frames.
+
+The positive class is "info-less". A frame is a true positive when the classifier called it
+info-less and it lies strictly inside a ground-truth interval (frames ``a+1 .. b-1``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, fields
+
+import numpy as np
+from numpy.typing import NDArray
+
+BoolArray = NDArray[np.bool_]
+IntArray = NDArray[np.int64]
+
+
+@dataclass
+class InfolessCounts:
+    """Confusion counts of the info-less label over frames (pool with ``+``).
+
+    Attributes:
+        tp: info-less frames called info-less.
+        fp: informative frames called info-less.
+        fn: info-less frames called informative.
+        tn: informative frames called informative.
+    """
+
+    tp: int = 0
+    fp: int = 0
+    fn: int = 0
+    tn: int = 0
+
+    def __add__(self, other: InfolessCounts) -> InfolessCounts:
+        """Pool two count sets."""
+        return InfolessCounts(
+            **{f.name: getattr(self, f.name) + getattr(other, f.name) for f in fields(self)}
+        )
+
+    @property
+    def precision(self) -> float:
+        """TP / (TP + FP); NaN when nothing was called info-less."""
+        total = self.tp + self.fp
+        return self.tp / total if total else float("nan")
+
+    @property
+    def recall(self) -> float:
+        """TP / (TP + FN); NaN when the ground truth has no info-less frame."""
+        total = self.tp + self.fn
+        return self.tp / total if total else float("nan")
+
+    @property
+    def f1(self) -> float:
+        """2 TP / (2 TP + FP + FN); NaN when neither side has an info-less frame."""
+        total = 2 * self.tp + self.fp + self.fn
+        return 2 * self.tp / total if total else float("nan")
+
+    @property
+    def misclassified(self) -> int:
+        """Frames whose label is wrong (FP + FN)."""
+        return self.fp + self.fn
+
+
+def infoless_truth(intervals: Iterable[tuple[int, int]], frames: IntArray) -> BoolArray:
+    """``(F,)`` True where a frame lies strictly inside one of the ``(a, b)`` intervals.
+
+    >>> infoless_truth([(2, 5)], np.arange(7)).astype(int).tolist()
+    [0, 0, 0, 1, 1, 0, 0]
+    """
+    frames = np.asarray(frames, dtype=np.int64)
+    truth = np.zeros(len(frames), dtype=bool)
+    for a, b in intervals:
+        truth |= (frames > a) & (frames < b)
+    return truth
+
+
+def infoless_counts(predicted: BoolArray, truth: BoolArray) -> InfolessCounts:
+    """Confusion counts of ``(F,)`` predicted labels against ``(F,)`` true labels.
+
+    >>> counts = infoless_counts(np.array([1, 1, 0, 0], bool), np.array([1, 0, 1, 0], bool))
+    >>> counts.tp, counts.fp, counts.fn, counts.tn, counts.f1
+    (1, 1, 1, 1, 0.5)
+    """
+    predicted = np.asarray(predicted, dtype=bool)
+    truth = np.asarray(truth, dtype=bool)
+    return InfolessCounts(
+        tp=int(np.sum(predicted & truth)),
+        fp=int(np.sum(predicted & ~truth)),
+        fn=int(np.sum(~predicted & truth)),
+        tn=int(np.sum(~predicted & ~truth)),
+    )

@@ -1,0 +1,108 @@
+"""Run-folder readers: formats, 0-based frames, and one clear UserError per bad input."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+from trackfw.errors import UserError
+from trackfw_plugins.evaluation.runs import read_frames_csv, read_mot_text, read_run, rows_by_frame
+
+HEADER = "frame,status,infoless_probability,infoless,n_detections,detections,ms_detector,ms_classifier,ms_tracker,ms_gap_matcher"
+
+
+def test_tracks_are_box_centres_on_0_based_frames(tmp_path: Path) -> None:
+    path = tmp_path / "tracks.txt"
+    path.write_text(
+        "1,3,60.0,160.0,80.0,80.0,1,-1,-1,-1\n\n2,3,62.0,160.0,80.0,80.0,1,-1,-1,-1\n",
+        encoding="utf-8",
+    )
+    rows = read_mot_text(path, n_frames=2)
+    assert rows.lines.tolist() == [1, 3]
+    assert rows_by_frame(rows) == {0: {3: (100.0, 200.0)}, 1: {3: (102.0, 200.0)}}
+    assert rows_by_frame(rows, "box", frame_offset=0)[1][3] == (60.0, 160.0, 80.0, 80.0)
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("1,3,60.0,160.0\n", "line 1: 4 values; expected at least 6"),
+        ("1,3,60,160,80,80\n1,x,60,160,80,80\n", "line 2: id is 'x'; expected an integer"),
+        ("1,3,nan,160,80,80\n", "line 1: left is 'nan'; expected a finite number"),
+        ("9,3,60,160,80,80\n", "line 1: frame 9 is outside the video; expected 1..5"),
+        ("0,3,60,160,80,80\n", "line 1: frame 0 is outside the video"),
+        ("1,3,60,160,80,80\n1,3,61,160,80,80\n", "line 2: id 3 appears twice in frame 1"),
+    ],
+)
+def test_malformed_tracks_name_file_and_line(tmp_path: Path, content: str, message: str) -> None:
+    path = tmp_path / "tracks.txt"
+    path.write_text(content, encoding="utf-8")
+    with pytest.raises(UserError) as error:
+        read_mot_text(path, n_frames=5)
+    assert str(path) in str(error.value)
+    assert message in str(error.value)
+
+
+def test_frames_csv(tmp_path: Path) -> None:
+    path = tmp_path / "frames.csv"
+    path.write_text(
+        HEADER + "\n"
+        "2,ok,0.9,1,0,,1,1,1,0\n"
+        "1,ok,0.1,0,2,10.5 20.0;30.0 40.5,1,1,1,0\n"
+        "3,unread,,,0,,0,0,0,0\n",
+        encoding="utf-8",
+    )
+    records = read_frames_csv(path, n_frames=3)
+    assert records.frames.tolist() == [0, 1, 2]
+    assert records.infoless.tolist() == [False, True, False]
+    assert records.ok.tolist() == [True, True, False]
+    assert np.isnan(records.infoless_probability[2])
+    assert records.detections[0].tolist() == [[10.5, 20.0], [30.0, 40.5]]
+    assert records.detections[1].shape == (0, 2)
+
+
+@pytest.mark.parametrize(
+    ("row", "message"),
+    [
+        ("1,done,0.1,0,0,,1,1,1,0", "status is 'done'"),
+        ("1,ok,0.1,2,0,,1,1,1,0", "infoless is '2'; expected 0 or 1"),
+        ("1,ok,0.1,0,3,1 2,1,1,1,0", "n_detections is 3 but detections lists 1 points"),
+        ("1,ok,0.1,0,1,1 nan,1,1,1,0", "detections is 'nan'; expected a finite number"),
+        ("1,ok,0.1,0,1,1 2 3,1,1,1,0", "detections item '1 2 3'"),
+        ("7,ok,0.1,0,0,,1,1,1,0", "frame 7 is outside the video"),
+        ("1,ok,0.1,0,0,,1,1,1", "9 values; expected 10"),
+    ],
+)
+def test_malformed_frames_csv(tmp_path: Path, row: str, message: str) -> None:
+    path = tmp_path / "frames.csv"
+    path.write_text(HEADER + "\n" + row + "\n", encoding="utf-8")
+    with pytest.raises(UserError) as error:
+        read_frames_csv(path, n_frames=5)
+    assert f"{path}: line 2:" in str(error.value)
+    assert message in str(error.value)
+
+
+def test_frames_csv_header_is_checked(tmp_path: Path) -> None:
+    path = tmp_path / "frames.csv"
+    path.write_text("frame,infoless\n1,0\n", encoding="utf-8")
+    with pytest.raises(UserError, match="line 1: header"):
+        read_frames_csv(path)
+
+
+def test_read_run(tmp_path: Path, make_run: Callable[..., Path]) -> None:
+    folder = make_run(tmp_path, "v1", {0: {1: (100.0, 200.0)}}, n_frames=3, infoless_frames=[1])
+    run = read_run(folder, n_frames=3)
+    assert run.name == "v1"
+    assert run.tracks == {0: {1: (100.0, 200.0)}}
+    assert run.frames.infoless.tolist() == [False, True, False]
+    assert run.summary == {"video": "v1"} and run.gaps == []
+    (folder / "gaps.json").write_text("{oops", encoding="utf-8")
+    with pytest.raises(UserError, match=r"gaps\.json: line 1: invalid JSON"):
+        read_run(folder, n_frames=3)
+    (folder / "frames.csv").unlink()
+    with pytest.raises(UserError, match=r"frames\.csv: file not found"):
+        read_run(folder, n_frames=3)
+    with pytest.raises(UserError, match="no run for this video"):
+        read_run(tmp_path / "absent")
