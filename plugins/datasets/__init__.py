@@ -25,7 +25,9 @@ def trackfw_register_inputs(registry: Registry) -> None:
 @hookimpl
 def trackfw_register_commands(app: Any) -> None:
     """Add the ``dataset`` command group."""
-    import typer
+    from trackfw.cli import command_group
+    from trackfw_plugins.datasets import check, wear
 
-    dataset_app = typer.Typer(help="Make or check a wearable-camera dataset.", no_args_is_help=True)
-    app.add_typer(dataset_app, name="dataset")
+    dataset_app = command_group(app, "dataset", "Make or check a wearable-camera dataset.")
+    wear.register(dataset_app)
+    check.register(dataset_app)
