@@ -15,6 +15,7 @@ from collections.abc import Callable
 
 import cv2
 import numpy as np
+
 from trackfw_plugins.maths.appearance import appearance_descriptors
 from trackfw_plugins.maths.gog import gog_descriptor
 from trackfw_plugins.maths.lomo import lomo_descriptor

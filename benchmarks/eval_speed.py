@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from trackfw.dataset import write_heads, write_intervals, write_meta, write_targets
 from trackfw.records import Interval
 from trackfw_plugins.evaluation.report import EvalSettings, evaluate_dataset, write_reports

@@ -15,6 +15,7 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 from rich.table import Table
+
 from trackfw import __version__
 from trackfw.errors import UserError
 from trackfw.registry import Registry, call_command_hooks, load_registry, params_schema

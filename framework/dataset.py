@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from trackfw.atomic import write_json, write_text
 from trackfw.errors import UserError
 from trackfw.records import GroundTruth, Interval, VideoContext

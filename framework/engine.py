@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
 from trackfw.errors import UserError
 from trackfw.pipeline import Pipeline
 from trackfw.records import (

@@ -19,6 +19,7 @@ from typing import Any
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
 from trackfw.errors import UserError
 from trackfw.registry import Registry, unknown_name_message
 from trackfw.stages import STAGE_KINDS, Stage

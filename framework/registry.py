@@ -22,6 +22,7 @@ from typing import Any
 
 import pluggy
 from pydantic import BaseModel, ValidationError
+
 from trackfw import PLUGIN_API_VERSION, hookspecs
 from trackfw.errors import PluginError
 from trackfw.stages import STAGE_BASES, Stage, StageParams

@@ -20,6 +20,7 @@ from typing import ClassVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
+
 from trackfw.records import (
     ClassifierDecision,
     Detections,

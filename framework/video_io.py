@@ -13,6 +13,7 @@ from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
+
 from trackfw.dataset import IMAGE_SUFFIXES, frame_source_path
 from trackfw.records import VideoContext
 

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+
 from trackfw.dataset import (
     GT_FILE,
     HEADS_FILE,

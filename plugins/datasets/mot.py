@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
 from trackfw.errors import UserError
 
 SEQINFO_FILE = "seqinfo.ini"

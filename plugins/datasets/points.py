@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+
 from trackfw.dataset import write_heads, write_intervals, write_meta, write_targets
 from trackfw.records import Interval
 

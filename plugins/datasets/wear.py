@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import numpy as np
 import typer
+
 from trackfw.atomic import atomic_open, write_text
 from trackfw.dataset import (
     GT_FILE,

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+
 from trackfw.errors import UserError
 from trackfw_plugins.datasets.mot import MotSequence, head_proxies, read_frame
 

@@ -12,6 +12,7 @@ from typing import Literal
 
 import numpy as np
 from pydantic import Field
+
 from trackfw.records import Detections, FrameData, VideoContext
 from trackfw.stages import Detector, StageParams
 

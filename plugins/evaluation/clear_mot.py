@@ -23,6 +23,7 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
+
 from trackfw_plugins.maths.assignment import distance_matrix, hungarian
 
 FloatArray = NDArray[np.float64]

@@ -39,6 +39,7 @@ def eval_command(
     """MOTA, MOTP, MOTA-In, MOTP-In, IDF1, HOTA and info-less precision/recall/F1 of a runs folder."""
     from rich.console import Console
     from rich.progress import Progress
+
     from trackfw.dataset import list_videos
     from trackfw_plugins.evaluation.report import (
         EvalSettings,

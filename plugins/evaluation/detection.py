@@ -12,6 +12,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 from numpy.typing import NDArray
+
 from trackfw_plugins.maths.assignment import distance_matrix, hungarian
 
 FloatArray = NDArray[np.float64]

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
+
 from trackfw_plugins.evaluation.clear_mot import (
     FrameObservations,
     Geometry,

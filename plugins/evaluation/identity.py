@@ -14,6 +14,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+
 from trackfw_plugins.evaluation.clear_mot import (
     FrameObservations,
     Geometry,

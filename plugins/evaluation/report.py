@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from trackfw.atomic import write_json, write_text
 from trackfw.dataset import list_videos, load_video
 from trackfw.errors import UserError

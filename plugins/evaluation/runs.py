@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
 from trackfw.errors import UserError
 
 FloatArray = NDArray[np.float64]

@@ -12,6 +12,7 @@ from typing import Literal
 
 import numpy as np
 from pydantic import Field
+
 from trackfw.records import NO_MATCH, GapProblem, GapSolution, Prediction
 from trackfw.stages import GapMatcher, StageParams
 from trackfw_plugins.maths.assignment import distance_matrix, greedy_nearest, hungarian

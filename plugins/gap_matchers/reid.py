@@ -13,6 +13,7 @@ from typing import Literal
 
 import numpy as np
 from pydantic import Field
+
 from trackfw.records import NO_MATCH, FloatArray, GapProblem, GapSolution
 from trackfw.stages import GapMatcher, StageParams
 from trackfw_plugins.maths.assignment import hungarian

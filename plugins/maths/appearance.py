@@ -19,6 +19,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
 from trackfw.records import FloatArray
 
 UInt8Array = NDArray[np.uint8]

@@ -23,6 +23,7 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
+
 from trackfw.records import FloatArray
 
 SeriesKind = Literal["displacement", "position"]

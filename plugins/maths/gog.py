@@ -21,6 +21,7 @@ from typing import Any, cast
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
 from trackfw.records import FloatArray
 from trackfw_plugins.maths.lomo import rgb_to_hsv
 

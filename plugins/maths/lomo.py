@@ -17,6 +17,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
 from trackfw.records import FloatArray
 
 IntArray = NDArray[np.int64]

@@ -16,6 +16,7 @@ from typing import Literal
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
 from trackfw.records import FloatArray
 from trackfw_plugins.maths.appearance import crop_replicate
 

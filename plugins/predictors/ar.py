@@ -11,6 +11,7 @@ from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
+
 from trackfw.records import GapProblem, Prediction
 from trackfw.stages import Predictor, StageParams
 from trackfw_plugins.maths.autoregressive import ArSettings, forecast_ar

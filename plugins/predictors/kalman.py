@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+
 from trackfw.records import GapProblem, Prediction
 from trackfw.stages import Predictor, StageParams
 from trackfw_plugins.maths.kalman import observation_matrix, transition_matrix

@@ -1,6 +1,7 @@
 """The ``kalman`` segment tracker: Kalman filter + association (ALGORITHMS.md section 1).
 
-Kalman1 of the paper is ``association: hungarian``; Kalman2 is ``association: nearest``.
+Kalman1 of the paper is ``association: hungarian``, Kalman2 ``association: nearest`` and Kalman3
+``association: tps-rpm`` (TPS-RPM between all predictions and detections on every frame, 1.6).
 The filter maths lives in :mod:`trackfw_plugins.maths.kalman`, the association in
 :mod:`trackfw_plugins.maths.assignment`.
 """
@@ -11,17 +12,28 @@ from typing import Literal
 
 import numpy as np
 from pydantic import Field
+
 from trackfw.records import NO_MATCH, Detections, FloatArray, IntArray, TargetState, VideoContext
 from trackfw.stages import StageParams, Tracker
 from trackfw_plugins.maths.assignment import distance_matrix, greedy_nearest, hungarian
 from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R, KalmanBank
+from trackfw_plugins.maths.tps_rpm import TpsRpmSettings, match_points
+
+
+def _kalman3_rpm() -> TpsRpmSettings:
+    return TpsRpmSettings(normalisation="template", precision="float32")
 
 
 class KalmanTrackerParams(StageParams):
     """Parameters of the Kalman tracker; P0, Q and R default to the paper's values."""
 
-    association: Literal["hungarian", "nearest"] = Field(
-        "hungarian", description="'hungarian' (Kalman1) or greedy 'nearest' neighbour (Kalman2)"
+    association: Literal["hungarian", "nearest", "tps-rpm"] = Field(
+        "hungarian",
+        description="'hungarian' (Kalman1), greedy 'nearest' neighbour (Kalman2) or 'tps-rpm' (Kalman3)",
+    )
+    rpm: TpsRpmSettings = Field(
+        default_factory=_kalman3_rpm,
+        description="TPS-RPM settings for association 'tps-rpm' (one similarity from the predictions, 1.6)",
     )
     gate_px_at_1080: float | None = Field(
         50.0,
@@ -67,6 +79,9 @@ class KalmanTracker(Tracker):
 
     def associate(self, predicted: FloatArray, detections: Detections) -> IntArray:
         """Row of ``detections`` for each predicted target, ``-1`` when none (gated)."""
+        if self.settings.association == "tps-rpm":
+            rows, _, _ = match_points(predicted, detections.points, self.settings.rpm)
+            return rows
         cost = distance_matrix(predicted, detections.points)
         if self.settings.association == "nearest":
             return greedy_nearest(cost, self.gate)

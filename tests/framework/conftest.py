@@ -7,6 +7,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+
 from trackfw_plugins.datasets.points import make_points_video
 
 PIPELINE = textwrap.dedent(

@@ -10,6 +10,7 @@ from types import ModuleType
 import cv2
 import numpy as np
 import pytest
+
 from trackfw.dataset import load_video
 from trackfw.engine import Engine
 from trackfw.hookspecs import hookimpl

@@ -6,6 +6,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+
 from trackfw.cli import main
 from trackfw.errors import UserError
 from trackfw.pipeline import load_pipeline

@@ -10,6 +10,7 @@ from pathlib import Path
 from types import ModuleType
 
 import pytest
+
 from trackfw import hookspecs
 from trackfw.cli import main
 from trackfw.hookspecs import hookimpl
@@ -153,6 +154,7 @@ def test_failed_registration_is_rolled_back() -> None:
 
 def test_undocumented_parameters_are_refused() -> None:
     from pydantic import Field
+
     from trackfw.errors import PluginError
     from trackfw.stages import StageParams
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 from pydantic import Field
+
 from trackfw.hookspecs import hookimpl
 from trackfw.records import Detections, FrameData
 from trackfw.registry import Registry

@@ -7,11 +7,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 import typer
+from typer.testing import CliRunner
+
 from trackfw.dataset import write_heads, write_intervals, write_meta, write_targets
 from trackfw.records import Interval
 from trackfw_plugins.datasets import check as check_module
 from trackfw_plugins.datasets.check import check_dataset
-from typer.testing import CliRunner
 
 N_FRAMES, WIDTH, HEIGHT = 10, 32, 24
 

@@ -7,6 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+
 from trackfw.errors import UserError
 from trackfw_plugins.datasets.mot import (
     head_proxies,

@@ -12,6 +12,8 @@ import cv2
 import numpy as np
 import pytest
 import typer
+from typer.testing import CliRunner
+
 from trackfw.dataset import load_video
 from trackfw.errors import UserError
 from trackfw_plugins.datasets import check as check_module
@@ -28,7 +30,6 @@ from trackfw_plugins.datasets.wear import (
     pose_homography,
     transform_points,
 )
-from typer.testing import CliRunner
 
 WIDTH, HEIGHT, FRAMES, PEOPLE = 64, 48, 44, 6
 BOX_WIDTH, BOX_HEIGHT = 8.0, 20.0

@@ -6,6 +6,7 @@ import itertools
 
 import numpy as np
 import pytest
+
 from trackfw.errors import UserError
 from trackfw_plugins.datasets.wear_intervals import (
     InfolessView,

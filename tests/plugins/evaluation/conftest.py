@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from trackfw.dataset import write_heads, write_intervals, write_meta, write_targets
 from trackfw.records import Interval
 

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+
 from trackfw_plugins.evaluation.clear_mot import (
     ClearMotAccumulator,
     assign_allowed,

@@ -6,9 +6,10 @@ from collections.abc import Callable
 from pathlib import Path
 
 import typer
+from typer.testing import CliRunner
+
 from trackfw.errors import UserError
 from trackfw_plugins.evaluation.cli import register
-from typer.testing import CliRunner
 
 
 def _app() -> typer.Typer:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+
 from trackfw_plugins.evaluation.detection import DetectionCounts, frame_detection_counts
 
 

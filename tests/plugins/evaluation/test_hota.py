@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from trackfw_plugins.evaluation.clear_mot import build_sequence
 from trackfw_plugins.evaluation.hota import ALPHAS, HotaCounts, hota_counts, similarity_matrix
 

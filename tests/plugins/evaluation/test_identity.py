@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
+
 from trackfw_plugins.evaluation.clear_mot import build_sequence
 from trackfw_plugins.evaluation.identity import IdentityCounts, identity_counts
 

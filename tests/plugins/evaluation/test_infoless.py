@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from trackfw_plugins.evaluation.infoless import InfolessCounts, infoless_counts, infoless_truth
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+
 from trackfw_plugins.evaluation.clear_mot import ClearMotCounts, build_sequence, clear_mot
 from trackfw_plugins.evaluation.hota import HotaCounts, hota_counts
 from trackfw_plugins.evaluation.identity import IdentityCounts, identity_counts

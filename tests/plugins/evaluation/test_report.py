@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from trackfw.errors import UserError
 from trackfw_plugins.evaluation.report import (
     EvalSettings,

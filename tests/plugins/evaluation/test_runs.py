@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from trackfw.errors import UserError
 from trackfw_plugins.evaluation.runs import read_frames_csv, read_mot_text, read_run, rows_by_frame
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from trackfw.records import Detections, GapProblem, Interval, TargetState, VideoContext
 from trackfw.registry import load_registry
 

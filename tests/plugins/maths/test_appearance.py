@@ -7,6 +7,7 @@ import itertools
 import cv2
 import numpy as np
 import pytest
+
 from trackfw_plugins.maths.appearance import (
     DESCRIPTOR_SIZE,
     HOG_SIZE,

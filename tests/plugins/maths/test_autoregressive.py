@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from trackfw_plugins.maths.autoregressive import (
     ArSettings,
     companion_spectral_radius,

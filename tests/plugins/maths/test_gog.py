@@ -5,6 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+
 from trackfw_plugins.maths.gog import (
     gaussian_embedding_log,
     gog_block_sizes,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+
 from trackfw_plugins.maths.lomo import lomo_descriptors
 from trackfw_plugins.maths.reid_crop import (
     fit_xqda,

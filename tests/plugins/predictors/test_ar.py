@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pydantic
 import pytest
+
 from trackfw.records import Detections, GapProblem, Interval, TargetState, VideoContext
 from trackfw_plugins.predictors.ar import ArPredictor
 

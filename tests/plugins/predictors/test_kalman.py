@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+
 from trackfw.records import Detections, GapProblem, Interval, TargetState, VideoContext
 from trackfw_plugins.predictors.kalman import KalmanPredictor
 

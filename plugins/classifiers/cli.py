@@ -1,0 +1,255 @@
+"""``trackfw train classifier``: train the info-less SVM on a dataset (ALGORITHMS.md §6.3)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+import yaml
+
+from trackfw.atomic import write_json
+from trackfw.errors import UserError
+
+#: Folder beside the model file that keeps the per-video measurements (NPZ).
+CACHE_FOLDER = "infoless_features.cache"
+
+
+def parse_assignments(assignments: list[str], option: str) -> dict[str, Any]:
+    """``["k=v", ...]`` to a dict; values are read as YAML scalars (numbers, booleans...).
+
+    >>> parse_assignments(["miss_rate=0.1", "source=heads"], "--detector-param")
+    {'miss_rate': 0.1, 'source': 'heads'}
+    """
+    params: dict[str, Any] = {}
+    for assignment in assignments:
+        key, separator, text = assignment.partition("=")
+        if not separator or not key.strip():
+            raise UserError(f"{option} {assignment!r}: expected KEY=VALUE.")
+        try:
+            params[key.strip()] = yaml.safe_load(text) if text.strip() else ""
+        except yaml.YAMLError:
+            raise UserError(f"{option} {assignment!r}: the value is not valid YAML.") from None
+    return params
+
+
+def _percent(value: float) -> str:
+    return "n/a" if math.isnan(value) else f"{100 * value:.1f}%"
+
+
+def train_classifier(
+    dataset: Path,
+    out: Path,
+    detector: str = "oracle",
+    detector_params: list[str] | None = None,
+    grid: bool = False,
+    seed: int = 0,
+    videos_from: Path | None = None,
+    evaluate_on: Path | None = None,
+    report: Path | None = None,
+    flow: str = "dis",
+    flow_width: int = 320,
+    dis_preset: str = "ultrafast",
+    c_max: float = 10.0,
+    reference: str = "gt",
+    replay_rounds: int = 1,
+    cache: bool = True,
+    echo: Any = typer.echo,
+) -> dict[str, Any]:
+    """Train, optionally evaluate, write the model; returns the report (see the command)."""
+    from trackfw_plugins.classifiers.training import (
+        FeatureSettings,
+        FrameScores,
+        classify_online,
+        collect_measurements,
+        fit_flow_thresholds,
+        fit_model,
+        flow_threshold_online,
+        read_video_list,
+        select_videos,
+    )
+
+    if flow not in ("dis", "farneback"):
+        raise UserError(f"--flow {flow!r}: expected 'dis' or 'farneback'.")
+    if dis_preset not in ("ultrafast", "fast", "medium"):
+        raise UserError(f"--dis-preset {dis_preset!r}: expected ultrafast, fast or medium.")
+    if reference not in ("gt", "replay"):
+        raise UserError(f"--reference {reference!r}: expected 'gt' or 'replay'.")
+    if replay_rounds < 1:
+        raise UserError(f"--replay-rounds {replay_rounds}: expected at least 1.")
+    if flow_width < 16 or not c_max > 0:
+        raise UserError("--flow-width must be at least 16 and --c-max positive.")
+    settings = FeatureSettings(flow, flow_width, dis_preset, c_max)
+    spec = {
+        "type": detector,
+        "params": parse_assignments(detector_params or [], "--detector-param"),
+    }
+    cache_dir = out.parent / CACHE_FOLDER if cache else None
+    train_names = read_video_list(videos_from) if videos_from is not None else None
+    train_dirs = select_videos(dataset, train_names)
+    echo(f"measuring {len(train_dirs)} training videos with detector {detector!r}")
+    train_videos = collect_measurements(train_dirs, spec, settings, cache_dir, echo)
+    model, summary = fit_model(
+        train_videos,
+        settings,
+        grid=grid,
+        seed=seed,
+        reference=reference,
+        replay_rounds=replay_rounds,
+        log=echo,
+    )
+    scores = summary.cross_validated
+    echo(
+        f"cross-validated ({summary.folds} folds by video, C={summary.C}, gamma={summary.gamma}):"
+        f" precision {_percent(scores.precision)}, recall {_percent(scores.recall)},"
+        f" F1 {_percent(scores.f1)}"
+    )
+    model.training = {
+        "dataset": str(dataset),
+        "videos": [video.name for video in train_videos],
+        "frames": int(sum(len(video.frames) for video in train_videos)),
+        "detector": spec,
+        "seed": seed,
+        "reference": reference,
+        "replay_rounds": replay_rounds if reference == "replay" else 0,
+        "C": summary.C,
+        "gamma": summary.gamma,
+        "grid": summary.grid,
+        "cross_validated": scores.as_dict(),
+        "support_vectors": len(model.support_vectors),
+    }
+    result: dict[str, Any] = {"training": model.training}
+    if evaluate_on is not None:
+        test_dirs = select_videos(dataset, read_video_list(evaluate_on))
+        echo(f"measuring {len(test_dirs)} test videos")
+        test_videos = collect_measurements(test_dirs, spec, settings, cache_dir, echo)
+        high, low, _ = fit_flow_thresholds(train_videos, flow_width)
+        rows: list[dict[str, Any]] = []
+        pooled, pooled_flow = FrameScores(), FrameScores()
+        for video in test_videos:
+            _, decisions = classify_online(model, video)
+            svm_scores = FrameScores.of(decisions, video.labels)
+            flow_scores = FrameScores.of(
+                flow_threshold_online(video, high, low, flow_width), video.labels
+            )
+            pooled += svm_scores
+            pooled_flow += flow_scores
+            rows.append(
+                {
+                    "video": video.name,
+                    "frames": len(video.frames),
+                    "svm": svm_scores.as_dict() | {"misclassified": svm_scores.misclassified},
+                    "flow_threshold": flow_scores.as_dict()
+                    | {"misclassified": flow_scores.misclassified},
+                }
+            )
+            echo(
+                f"  {video.name}: svm P {_percent(svm_scores.precision)} R"
+                f" {_percent(svm_scores.recall)} misclassified {svm_scores.misclassified};"
+                f" flow-threshold misclassified {flow_scores.misclassified}"
+            )
+        count = max(len(test_videos), 1)
+        result["test"] = {
+            "videos": rows,
+            "svm": pooled.as_dict() | {"misclassified_per_video": pooled.misclassified / count},
+            "flow_threshold": pooled_flow.as_dict()
+            | {"misclassified_per_video": pooled_flow.misclassified / count},
+            "flow_threshold_fitted": {"high": high, "low": low},
+        }
+        for label, scores in (("svm", pooled), (f"flow-threshold ({high}/{low})", pooled_flow)):
+            echo(
+                f"test {label}: precision {_percent(scores.precision)}, recall"
+                f" {_percent(scores.recall)}, F1 {_percent(scores.f1)},"
+                f" {scores.misclassified / count:.1f} misclassified frames per video"
+            )
+    model.save(out)
+    echo(f"wrote {out} ({len(model.support_vectors)} support vectors)")
+    if report is not None:
+        write_json(report, result)
+    return result
+
+
+def register(train_app: typer.Typer) -> None:
+    """Add the ``classifier`` command to the ``trackfw train`` group."""
+
+    @train_app.command("classifier")
+    def classifier_command(
+        dataset: Annotated[
+            Path, typer.Option("--dataset", help="Dataset folder whose videos have intervals.csv.")
+        ],
+        out: Annotated[Path, typer.Option("--out", help="Model file to write (JSON).")],
+        detector: Annotated[
+            str, typer.Option("--detector", help="Detector plugin that gives N_t and S_t.")
+        ] = "oracle",
+        detector_param: Annotated[
+            list[str] | None,
+            typer.Option("--detector-param", help="Detector parameter KEY=VALUE (repeatable)."),
+        ] = None,
+        grid: Annotated[
+            bool,
+            typer.Option("--grid/--no-grid", help="Grid-search C and gamma (GroupKFold by video)."),
+        ] = False,
+        seed: Annotated[int, typer.Option("--seed", help="Seed of the video folds.")] = 0,
+        videos_from: Annotated[
+            Path | None,
+            typer.Option("--videos-from", help="Train on the videos named in this file only."),
+        ] = None,
+        evaluate_on: Annotated[
+            Path | None,
+            typer.Option(
+                "--evaluate-on",
+                help="Then score the videos named in this file online, beside flow-threshold.",
+            ),
+        ] = None,
+        report: Annotated[
+            Path | None, typer.Option("--report", help="Write the scores as JSON.")
+        ] = None,
+        flow: Annotated[
+            str, typer.Option("--flow", help="Optical flow: dis or farneback.")
+        ] = "dis",
+        flow_width: Annotated[
+            int, typer.Option("--flow-width", help="Working width of the flow, pixels.")
+        ] = 320,
+        dis_preset: Annotated[
+            str, typer.Option("--dis-preset", help="DIS preset: ultrafast, fast or medium.")
+        ] = "ultrafast",
+        c_max: Annotated[float, typer.Option("--c-max", help="Clip of C_t.")] = 10.0,
+        reference: Annotated[
+            str,
+            typer.Option(
+                "--reference",
+                help="Reference frame of C_t in training: gt (paper protocol) or replay (gt plus"
+                " the features an online replay sees after its own mistakes).",
+            ),
+        ] = "gt",
+        replay_rounds: Annotated[
+            int, typer.Option("--replay-rounds", help="Rounds of replay with --reference replay.")
+        ] = 1,
+        cache: Annotated[
+            bool,
+            typer.Option(
+                "--cache/--no-cache",
+                help="Keep per-video measurements beside OUT (infoless_features.cache/).",
+            ),
+        ] = True,
+    ) -> None:
+        """Train the info-less frame SVM (11-d feature, RBF kernel) on a dataset."""
+        train_classifier(
+            dataset,
+            out,
+            detector=detector,
+            detector_params=detector_param,
+            grid=grid,
+            seed=seed,
+            videos_from=videos_from,
+            evaluate_on=evaluate_on,
+            report=report,
+            flow=flow,
+            flow_width=flow_width,
+            dis_preset=dis_preset,
+            c_max=c_max,
+            reference=reference,
+            replay_rounds=replay_rounds,
+            cache=cache,
+        )

@@ -1,0 +1,612 @@
+"""Training and evaluating the info-less SVM (ALGORITHMS.md §6.3) on a dataset.
+
+Three steps, each usable on its own:
+
+1. :func:`measure_video` runs a detector and the optical flow over a video and keeps the raw
+   per-frame measurements ``M_t``, ``N_t``, ``S_t`` with the ground-truth labels (cached as NPZ,
+   since decoding and flow dominate the cost).
+2. :func:`fit_model` builds the training features with the reference frame of ``C_t`` taken from
+   the ground truth [OURS §6.3], fits ``StandardScaler`` + RBF ``SVC`` (optionally a grid search,
+   ``GroupKFold`` by video), fits the Platt sigmoid on out-of-fold decision values and
+   cross-validates precision, recall and F1.
+3. :func:`classify_online` replays a video frame by frame with the classifier's own decisions
+   feeding ``C_t``, exactly as the ``svm`` stage does in the engine, for an honest test score.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from trackfw.atomic import atomic_open
+from trackfw.errors import UserError
+from trackfw.records import FloatArray, FrameData, IntArray, VideoContext
+from trackfw.stages import Detector
+from trackfw_plugins.classifiers.infoless_features import (
+    DEFAULT_C_MAX,
+    FEATURE_LAYOUT,
+    DisPreset,
+    FeatureAssembler,
+    FlowMethod,
+    OpticalFlowMeter,
+    assemble_features,
+    spread,
+)
+from trackfw_plugins.classifiers.svm_model import SvmModel, fit_platt, platt_probability
+
+BoolArray = NDArray[np.bool_]
+#: Where the reference frame of C_t comes from in training (see :func:`fit_model`).
+Reference = Literal["gt", "replay"]
+
+#: The grid of ALGORITHMS.md §6.3.
+GRID_C = (0.1, 1.0, 10.0, 100.0)
+GRID_GAMMA: tuple[str | float, ...] = ("scale", 0.01, 0.1, 1.0)
+CACHE_VERSION = 1
+
+
+@dataclass
+class FeatureSettings:
+    """How ``M_t`` and ``C_t`` are computed; recorded in the model file."""
+
+    flow: FlowMethod = "dis"
+    flow_width: int = 320
+    dis_preset: DisPreset = "ultrafast"
+    c_max: float = DEFAULT_C_MAX
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON form (the model file's ``features`` field)."""
+        return {
+            "flow": self.flow,
+            "flow_width": self.flow_width,
+            "dis_preset": self.dis_preset,
+            "c_max": self.c_max,
+        }
+
+
+@dataclass
+class VideoMeasurements:
+    """Per-frame measurements of one video (readable frames only, in order).
+
+    Attributes:
+        name: the video's name.
+        frames: ``(T,)`` frame indices.
+        motion: ``(T,)`` ``M_t`` in working-resolution pixels.
+        counts: ``(T,)`` ``N_t``.
+        spreads: ``(T,)`` ``S_t`` in native pixels.
+        labels: ``(T,)`` True for ground-truth info-less frames.
+    """
+
+    name: str
+    frames: IntArray
+    motion: FloatArray
+    counts: FloatArray
+    spreads: FloatArray
+    labels: BoolArray
+
+    def training_features(self, c_max: float = DEFAULT_C_MAX) -> FloatArray:
+        """``(T, 11)`` features with the ground truth choosing the reference of ``C_t``."""
+        return assemble_features(self.motion, self.counts, self.spreads, ~self.labels, c_max)
+
+
+def ground_truth_labels(video: VideoContext) -> BoolArray:
+    """``(n_frames,)`` True inside a ground-truth interval; a UserError when there is none."""
+    truth = video.ground_truth
+    if truth is None or not (Path(video.path) / "intervals.csv").is_file():
+        raise UserError(
+            f"{video.path}: no intervals.csv; training the classifier needs the ground-truth"
+            " info-less intervals."
+        )
+    labels = np.zeros(video.n_frames, dtype=bool)
+    for interval in truth.intervals:
+        labels[interval.a + 1 : min(interval.b, video.n_frames)] = True
+    return labels
+
+
+def measure_video(
+    video: VideoContext,
+    detector: Detector,
+    meter: OpticalFlowMeter,
+    frames: Any,
+    progress: Callable[[int], None] | None = None,
+) -> VideoMeasurements:
+    """Run ``detector`` and ``meter`` over a video.
+
+    Args:
+        video: the video with its ground truth.
+        detector: a built detector stage.
+        meter: the optical-flow meter (reset here).
+        frames: iterable of ``(t, image, status)`` as from ``trackfw.video_io.iter_frames``.
+        progress: called with each frame index.
+    """
+    labels = ground_truth_labels(video)
+    detector.start(video)
+    meter.reset()
+    rows: list[tuple[int, float, float, float]] = []
+    for t, image, status in frames:
+        if progress is not None:
+            progress(t)
+        if status != "ok" or image is None:
+            continue  # the engine skips unreadable frames too
+        detections = detector.detect(FrameData(t, image, video))
+        points = np.asarray(detections.points, dtype=np.float64).reshape(-1, 2)
+        rows.append((t, meter.measure(image), float(len(points)), spread(points)))
+    table = np.asarray(rows, dtype=np.float64).reshape(-1, 4)
+    indices = table[:, 0].astype(np.int64)
+    return VideoMeasurements(
+        name=video.name,
+        frames=indices,
+        motion=table[:, 1].copy(),
+        counts=table[:, 2].copy(),
+        spreads=table[:, 3].copy(),
+        labels=labels[indices],
+    )
+
+
+# ----------------------------------------------------------------------------------- caching
+
+
+def save_measurements(path: Path, measurements: VideoMeasurements, key: dict[str, Any]) -> None:
+    """Write the measurements and the settings they depend on to an NPZ file, atomically."""
+    with atomic_open(path, "wb") as stream:
+        np.savez_compressed(
+            stream,
+            key=np.array(json.dumps(key, sort_keys=True)),
+            frames=measurements.frames,
+            motion=measurements.motion,
+            counts=measurements.counts,
+            spreads=measurements.spreads,
+            labels=measurements.labels,
+        )
+
+
+def load_measurements(path: Path, name: str, key: dict[str, Any]) -> VideoMeasurements | None:
+    """The cached measurements when ``path`` exists and was made with ``key``; else None."""
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if str(data["key"]) != json.dumps(key, sort_keys=True):
+                return None
+            arrays = {
+                name: np.asarray(data[name])
+                for name in ("frames", "motion", "counts", "spreads", "labels")
+            }
+    except (OSError, ValueError, KeyError):
+        return None  # a damaged cache is simply recomputed
+    length = len(arrays["frames"])
+    if any(array.shape != (length,) for array in arrays.values()):
+        return None
+    return VideoMeasurements(
+        name=name,
+        frames=arrays["frames"].astype(np.int64),
+        motion=arrays["motion"].astype(np.float64),
+        counts=arrays["counts"].astype(np.float64),
+        spreads=arrays["spreads"].astype(np.float64),
+        labels=arrays["labels"].astype(bool),
+    )
+
+
+# ---------------------------------------------------------------------------------- training
+
+
+@dataclass
+class FrameScores:
+    """Frame-level scores of the info-less label (positive = info-less)."""
+
+    tp: int = 0
+    fp: int = 0
+    fn: int = 0
+    tn: int = 0
+
+    @classmethod
+    def of(cls, predicted: BoolArray, truth: BoolArray) -> FrameScores:
+        """Count ``(T,)`` predictions against ``(T,)`` truth."""
+        predicted, truth = np.asarray(predicted, bool), np.asarray(truth, bool)
+        return cls(
+            tp=int(np.sum(predicted & truth)),
+            fp=int(np.sum(predicted & ~truth)),
+            fn=int(np.sum(~predicted & truth)),
+            tn=int(np.sum(~predicted & ~truth)),
+        )
+
+    def __add__(self, other: FrameScores) -> FrameScores:
+        return FrameScores(
+            self.tp + other.tp, self.fp + other.fp, self.fn + other.fn, self.tn + other.tn
+        )
+
+    @property
+    def precision(self) -> float:
+        """TP / (TP + FP), NaN when nothing was called info-less."""
+        return self.tp / (self.tp + self.fp) if self.tp + self.fp else math.nan
+
+    @property
+    def recall(self) -> float:
+        """TP / (TP + FN), NaN when there is no info-less frame."""
+        return self.tp / (self.tp + self.fn) if self.tp + self.fn else math.nan
+
+    @property
+    def f1(self) -> float:
+        """2 TP / (2 TP + FP + FN)."""
+        total = 2 * self.tp + self.fp + self.fn
+        return 2 * self.tp / total if total else math.nan
+
+    @property
+    def misclassified(self) -> int:
+        """FP + FN."""
+        return self.fp + self.fn
+
+    def as_dict(self) -> dict[str, float | None]:
+        """Counts and rates, JSON-ready (NaN as None)."""
+        values = {
+            "tp": self.tp,
+            "fp": self.fp,
+            "fn": self.fn,
+            "tn": self.tn,
+            "precision": self.precision,
+            "recall": self.recall,
+            "f1": self.f1,
+        }
+        return {
+            k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in values.items()
+        }
+
+
+@dataclass
+class TrainingReport:
+    """What :func:`fit_model` did."""
+
+    C: float
+    gamma: str | float
+    folds: int
+    cross_validated: FrameScores
+    grid: list[dict[str, Any]] = field(default_factory=list)
+
+
+def training_set(
+    videos: Sequence[VideoMeasurements], c_max: float = DEFAULT_C_MAX
+) -> tuple[FloatArray, IntArray, IntArray]:
+    """``(n, 11)`` features, ``(n,)`` labels 0/1 and ``(n,)`` video groups of every frame."""
+    features = [video.training_features(c_max) for video in videos]
+    labels = [video.labels.astype(np.int64) for video in videos]
+    groups = [np.full(len(video.frames), index, np.int64) for index, video in enumerate(videos)]
+    return np.concatenate(features), np.concatenate(labels), np.concatenate(groups)
+
+
+def _pipeline(C: float, gamma: str | float) -> Any:
+    from sklearn.pipeline import Pipeline
+    from sklearn.preprocessing import StandardScaler
+    from sklearn.svm import SVC
+
+    return Pipeline(
+        [
+            ("scaler", StandardScaler()),
+            ("svc", SVC(kernel="rbf", C=C, gamma=gamma, class_weight="balanced")),
+        ]
+    )
+
+
+def fit_model(
+    videos: Sequence[VideoMeasurements],
+    settings: FeatureSettings,
+    grid: bool = False,
+    seed: int = 0,
+    C: float = 1.0,
+    gamma: str | float = "scale",
+    reference: Reference = "gt",
+    replay_rounds: int = 1,
+    log: Callable[[str], None] | None = None,
+) -> tuple[SvmModel, TrainingReport]:
+    """Fit the info-less SVM on the videos' frames.
+
+    Args:
+        videos: measurements of the training videos (at least one frame of each class).
+        settings: the feature settings (recorded in the model).
+        grid: search C and gamma on the §6.3 grid by grouped cross-validation (F1).
+        seed: shuffles the video folds.
+        C, gamma: the SVM's settings without a grid search.
+        reference: ``"gt"``: the reference frame of ``C_t`` comes from the ground truth
+            (§6.3). ``"replay"``: in addition, every training video is replayed online by a
+            model trained without it, and the features it then saw (its own decisions choosing
+            the reference) are added with their true labels. This teaches the SVM the states
+            the recursion reaches after its own mistakes (one round of DAgger; Ross et al.
+            2011), which ground-truth features never show [OURS].
+        replay_rounds: how many times the replay is repeated with the grown training set.
+        log: receives progress lines.
+
+    Returns:
+        The model and the report with cross-validated (out-of-fold) frame scores on the
+        ground-truth-reference features.
+    """
+    from sklearn.model_selection import GridSearchCV, GroupKFold, cross_val_predict
+
+    say = log or (lambda line: None)
+    features, labels, groups = training_set(videos, settings.c_max)
+    if labels.min() == labels.max():
+        raise UserError(
+            "the training videos hold only one class of frames; expected both info-less and"
+            " informative frames (check intervals.csv)."
+        )
+    folds = min(5, len(videos))
+    grid_rows: list[dict[str, Any]] = []
+    if folds >= 2:
+        splitter = GroupKFold(n_splits=folds, shuffle=True, random_state=seed)
+        if grid:
+            say(f"grid search over {len(GRID_C) * len(GRID_GAMMA)} settings, {folds} folds")
+            search = GridSearchCV(
+                _pipeline(C, gamma),
+                {"svc__C": list(GRID_C), "svc__gamma": list(GRID_GAMMA)},
+                scoring="f1",
+                cv=splitter,
+            )
+            search.fit(features, labels, groups=groups)
+            C, gamma = search.best_params_["svc__C"], search.best_params_["svc__gamma"]
+            for params, score in zip(
+                search.cv_results_["params"], search.cv_results_["mean_test_score"], strict=True
+            ):
+                grid_rows.append(
+                    {"C": params["svc__C"], "gamma": params["svc__gamma"], "f1": float(score)}
+                )
+        truth = (features, labels, groups)
+        for round_number in range(replay_rounds if reference == "replay" else 0):
+            extra_features, extra_labels, extra_groups = _replayed_rows(
+                videos, (features, labels, groups), truth, splitter, C, gamma, settings
+            )
+            say(
+                f"replay round {round_number + 1} added {len(extra_labels)} frames whose C_t"
+                " differs online"
+            )
+            features = np.concatenate([features, extra_features])
+            labels = np.concatenate([labels, extra_labels])
+            groups = np.concatenate([groups, extra_groups])
+        say(f"cross-validating C={C}, gamma={gamma} over {folds} folds grouped by video")
+        out_of_fold = cross_val_predict(
+            _pipeline(C, gamma),
+            features,
+            labels,
+            groups=groups,
+            cv=splitter,
+            method="decision_function",
+        )
+    final = _pipeline(C, gamma).fit(features, labels)
+    if folds < 2:
+        # One video: no held-out values; the sigmoid is then fitted in-sample (optimistic).
+        out_of_fold = final.decision_function(features)
+    platt = fit_platt(out_of_fold, labels)
+    model = SvmModel.from_sklearn(
+        final.named_steps["scaler"],
+        final.named_steps["svc"],
+        platt=platt,
+        feature_layout=FEATURE_LAYOUT,
+        features=settings.as_dict(),
+    )
+    original = sum(len(video.frames) for video in videos)
+    probabilities = platt_probability(out_of_fold[:original], model.platt_a, model.platt_b)
+    scores = FrameScores.of(probabilities >= 0.5, labels[:original].astype(bool))
+    return model, TrainingReport(
+        C=float(C), gamma=gamma, folds=folds, cross_validated=scores, grid=grid_rows
+    )
+
+
+def _replayed_rows(
+    videos: Sequence[VideoMeasurements],
+    training: tuple[FloatArray, IntArray, IntArray],
+    truth: tuple[FloatArray, IntArray, IntArray],
+    splitter: Any,
+    C: float,
+    gamma: str | float,
+    settings: FeatureSettings,
+) -> tuple[FloatArray, IntArray, IntArray]:
+    """Features seen online by fold models on their held-out videos, where they differ.
+
+    Args:
+        videos: the training videos; group ``i`` is ``videos[i]``.
+        training: ``(features, labels, groups)`` the fold models learn from.
+        truth: the ground-truth-reference ``(features, labels, groups)``, one row per frame.
+        splitter: the grouped cross-validation.
+        C, gamma: SVM settings.
+        settings: feature settings.
+    """
+    features, labels, groups = training
+    true_features, true_labels, true_groups = truth
+    rows: list[FloatArray] = []
+    row_labels: list[IntArray] = []
+    row_groups: list[IntArray] = []
+    for train_rows, test_rows in splitter.split(features, labels, groups):
+        fold = _pipeline(C, gamma).fit(features[train_rows], labels[train_rows])
+        # In-sample sigmoid: only the 0.5 crossing matters for the replay.
+        platt = fit_platt(fold.decision_function(features[train_rows]), labels[train_rows])
+        fold_model = SvmModel.from_sklearn(
+            fold.named_steps["scaler"],
+            fold.named_steps["svc"],
+            platt=platt,
+            feature_layout=FEATURE_LAYOUT,
+            features=settings.as_dict(),
+        )
+        for index in np.unique(groups[test_rows]):
+            _, _, seen = replay(fold_model, videos[int(index)], c_max=settings.c_max)
+            own = true_groups == index
+            differs = np.any(seen != true_features[own], axis=1)
+            rows.append(seen[differs])
+            row_labels.append(true_labels[own][differs])
+            row_groups.append(true_groups[own][differs])
+    return np.concatenate(rows), np.concatenate(row_labels), np.concatenate(row_groups)
+
+
+# -------------------------------------------------------------------------------- evaluation
+
+
+def classify_online(
+    model: SvmModel, video: VideoMeasurements, threshold: float = 0.5, c_max: float | None = None
+) -> tuple[FloatArray, BoolArray]:
+    """Replay the ``svm`` stage over a video's measurements.
+
+    The classifier's own decisions choose the reference frame of ``C_t``; the first frame is
+    always informative, as in the engine.
+
+    Returns:
+        ``(T,)`` probabilities and ``(T,)`` info-less decisions.
+    """
+    probabilities, decisions, _ = replay(model, video, threshold, c_max)
+    return probabilities, decisions
+
+
+def replay(
+    model: SvmModel, video: VideoMeasurements, threshold: float = 0.5, c_max: float | None = None
+) -> tuple[FloatArray, BoolArray, FloatArray]:
+    """:func:`classify_online` that also returns the ``(T, 11)`` features the stage saw."""
+    limit = float(model.features.get("c_max", DEFAULT_C_MAX)) if c_max is None else c_max
+    assembler = FeatureAssembler(limit)
+    probabilities = np.zeros(len(video.frames))
+    decisions = np.zeros(len(video.frames), dtype=bool)
+    features = np.zeros((len(video.frames), len(FEATURE_LAYOUT)))
+    for row, t in enumerate(video.frames):
+        features[row] = assembler.push(
+            int(t), video.motion[row], video.counts[row], video.spreads[row]
+        )
+        probabilities[row] = model.probability(features[row])[0]
+        decisions[row] = row > 0 and probabilities[row] >= threshold
+        assembler.mark_informative(int(t), not decisions[row])
+    return probabilities, decisions, features
+
+
+def flow_threshold_online(
+    video: VideoMeasurements, high: float, low: float, flow_width: int
+) -> BoolArray:
+    """Replay the ``flow-threshold`` stage (thresholds in percent of the width per frame)."""
+    motion = 100.0 * video.motion / flow_width
+    decisions = np.zeros(len(motion), dtype=bool)
+    inside = False
+    for row, value in enumerate(motion):
+        inside = row > 0 and (value >= low if inside else value > high)
+        decisions[row] = inside
+    return decisions
+
+
+def fit_flow_thresholds(
+    videos: Sequence[VideoMeasurements], flow_width: int
+) -> tuple[float, float, FrameScores]:
+    """The ``(high, low)`` pair with the best pooled F1 on ``videos`` (a coarse grid)."""
+    candidates = np.round(np.geomspace(0.1, 20.0, 41), 3)
+    best: tuple[float, float, FrameScores] | None = None
+    for high in candidates:
+        for low in candidates[candidates <= high]:
+            scores = FrameScores()
+            for video in videos:
+                scores += FrameScores.of(
+                    flow_threshold_online(video, float(high), float(low), flow_width), video.labels
+                )
+            f1 = 0.0 if math.isnan(scores.f1) else scores.f1
+            if best is None or f1 > (0.0 if math.isnan(best[2].f1) else best[2].f1):
+                best = (float(high), float(low), scores)
+    assert best is not None
+    return best
+
+
+# ------------------------------------------------------------------------------ whole dataset
+
+
+def read_video_list(path: Path) -> list[str]:
+    """Video names from a split file: one per line; blank lines and ``#`` comments ignored."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        raise UserError(
+            f"{path}: cannot read the split file ({error}); expected UTF-8 text."
+        ) from None
+    names = [line.split("#", 1)[0].strip() for line in text.splitlines()]
+    names = [name for name in names if name]
+    if not names:
+        raise UserError(f"{path}: no video name; expected one video folder name per line.")
+    return names
+
+
+def select_videos(dataset: Path, names: Sequence[str] | None) -> list[Path]:
+    """The dataset's video folders, restricted to ``names`` (in the dataset's order)."""
+    from trackfw.dataset import list_videos
+
+    videos = list_videos(dataset)
+    if names is None:
+        return videos
+    by_name = {video.name: video for video in videos}
+    missing = [name for name in names if name not in by_name]
+    if missing:
+        raise UserError(
+            f"{dataset}: no video named {', '.join(repr(n) for n in missing[:5])}; expected names"
+            f" of its sub-folders such as {', '.join(sorted(by_name)[:3])}."
+        )
+    wanted = set(names)
+    return [video for video in videos if video.name in wanted]
+
+
+def collect_measurements(
+    video_dirs: Sequence[Path],
+    detector_spec: dict[str, Any],
+    settings: FeatureSettings,
+    cache_dir: Path | None = None,
+    log: Callable[[str], None] | None = None,
+) -> list[VideoMeasurements]:
+    """Measure every video with the registered detector, reusing the NPZ cache when valid.
+
+    Args:
+        video_dirs: the video folders.
+        detector_spec: ``{"type": name, "params": {...}}`` for the registry.
+        settings: flow settings.
+        cache_dir: folder of per-video NPZ caches, or None for no cache.
+        log: receives one line per video.
+    """
+    from pydantic import ValidationError
+
+    from trackfw.dataset import load_video
+    from trackfw.registry import load_registry
+    from trackfw.video_io import iter_frames
+
+    say = log or (lambda line: None)
+    registry = load_registry()
+    try:
+        detector = registry.build_stage("detector", detector_spec)
+    except KeyError as error:
+        raise UserError(str(error.args[0]) if error.args else str(error)) from None
+    except ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(part) for part in first["loc"])
+        raise UserError(f"--detector-param {where}: {first['msg']}.") from None
+    if not isinstance(detector, Detector):
+        raise UserError(f"{detector_spec['type']!r} is not a detector.")
+    meter = OpticalFlowMeter(settings.flow, settings.flow_width, settings.dis_preset)
+    measured: list[VideoMeasurements] = []
+    for number, video_dir in enumerate(video_dirs, start=1):
+        video = load_video(video_dir)
+        key = {
+            "cache_version": CACHE_VERSION,
+            "video": str(Path(video.path).resolve()),
+            "n_frames": video.n_frames,
+            "detector": detector_spec,
+            "flow": settings.flow,
+            "flow_width": settings.flow_width,
+            "dis_preset": settings.dis_preset,
+        }
+        # The key's hash in the name lets runs with other settings share the folder.
+        digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:12]
+        cache = None if cache_dir is None else cache_dir / f"{video.name}.{digest}.npz"
+        result = None if cache is None else load_measurements(cache, video.name, key)
+        if result is None:
+            result = measure_video(video, detector, meter, iter_frames(video, decode=True))
+            if cache is not None:
+                save_measurements(cache, result, key)
+            origin = "measured"
+        else:
+            origin = "cached"
+        say(
+            f"[{number}/{len(video_dirs)}] {video.name}: {len(result.frames)} frames,"
+            f" {int(result.labels.sum())} info-less ({origin})"
+        )
+        measured.append(result)
+    return measured

@@ -1,0 +1,707 @@
+"""TPS-RPM point matching (Chui & Rangarajan 2003; their MATLAB demo ``cMIX.m``).
+
+ALGORITHMS.md §3. The template (K points) is warped onto the data (N points) by deterministic
+annealing: at each temperature a softassign correspondence with outlier slack is computed, the
+template is attracted to the "virtual targets" it implies, and a regularised thin-plate spline is
+refitted. Template and data are normalised separately to unit RMS radius (§3.2) so that the
+authors' absolute temperature schedule applies to pixel coordinates.
+
+Vectorisation (§3.6): one annealing loop runs B data sets of equal size at once. Internally the
+batch is the *last* axis (arrays (K, N, B)), so that sums over K or N are contiguous. Per template,
+Φ, its QR factors and the per-temperature fit operators are cached in :class:`TpsRpmTemplate`.
+Because the regularised fit is linear in the virtual targets, one TPS update is a single
+(K, K) @ (K, 2B) product. Sinkhorn is run on scaling vectors (H = diag(a) E diag(b)); every data
+set stops its own Sinkhorn iteration by the code's rule, so batched and one-at-a-time runs agree.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict, Field
+
+from trackfw_plugins.maths.thin_plate import FloatArray, TpsBasis, homogeneous, tps_kernel
+
+IntArray = NDArray[np.int64]
+
+_ROW_SUM_FLOOR = 1e-12
+
+
+class TpsRpmSettings(BaseModel):
+    """TPS-RPM parameters; defaults are the authors' code values (§3.3) and ours (§10)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    T_init: float = Field(0.5, gt=0, description="Initial temperature (cMIX demo call).")
+    T_finalfac: float = Field(500.0, gt=1, description="T_final = T_init / T_finalfac.")
+    anneal_rate: float = Field(0.93, gt=0, lt=1, description="T <- anneal_rate * T per level.")
+    perT_maxit: int = Field(  # noqa: N815 - the config key of §10
+        5, ge=1, description="Alternating updates per temperature level."
+    )
+    lamda1_init: float = Field(
+        1.0, gt=0, description="Bending regulariser: lambda1 = lamda1_init * K * T."
+    )
+    lamda2_init: float = Field(
+        0.01, gt=0, description="Affine regulariser: lambda2 = lamda2_init * K * T."
+    )
+    sinkhorn_maxit: int = Field(10, ge=1, description="Maximum Sinkhorn sweeps per softassign.")
+    sinkhorn_tol: float = Field(
+        0.05, gt=0, description="Stop Sinkhorn when the mean squared row/column-sum error < tol^2."
+    )
+    mode: Literal["rpm", "mixture"] = Field(
+        "rpm",
+        description="'rpm': two-way normalisation with outlier row and column (code 'mix-rpm'); "
+        "'mixture': one-way normalisation over data columns (code default).",
+    )
+    schedule: Literal["code", "paper"] = Field(
+        "code",
+        description="'code': T_init / T_finalfac absolute schedule; 'paper': CVIU data-driven "
+        "schedule (largest squared pair distance down to mean squared NN distance).",
+    )
+    noise_seed: int | None = Field(
+        None, description="Seed of the code's symmetry-breaking noise; None switches it off."
+    )
+    rms_radius: float = Field(1.0, gt=0, description="RMS radius of the normalised point sets.")
+    normalisation: Literal["separate", "template"] = Field(
+        "separate",
+        description="'separate': template and data each normalised (§3.2); 'template': one "
+        "similarity from the template applied to both (Kalman3, §1.6).",
+    )
+    match_threshold: float = Field(
+        0.5, ge=0, lt=1, description="A pair matches when h > threshold and is row/column max."
+    )
+    early_stop: bool = Field(
+        False,
+        description="Stop a data set when max|dH| between the ends of two consecutive levels "
+        "< early_stop_tol; the final fit then uses the last level's regularisers.",
+    )
+    early_stop_tol: float = Field(1e-4, gt=0, description="Tolerance of early_stop.")
+    precision: Literal["float64", "float32"] = Field(
+        "float64",
+        description="Float type of the annealing loop; float32 is about twice as fast and "
+        "agrees with float64 to ~1e-5 in H (the final fit is always float64).",
+    )
+
+
+def normalise_points(
+    points: FloatArray, rms_radius: float = 1.0
+) -> tuple[FloatArray, FloatArray, float]:
+    """Centre a point set and scale it to the given RMS radius.
+
+    Args:
+        points: (P, 2) points.
+        rms_radius: RMS distance of the normalised points from the origin.
+
+    Returns:
+        ``(normalised (P, 2), centre (2,), scale)`` with ``points = centre + scale * normalised``.
+        A set with zero spread gets scale 1 / rms_radius times 1.
+
+    >>> normalised, centre, scale = normalise_points(np.array([[0.0, 0.0], [4.0, 0.0]]))
+    >>> normalised.tolist(), centre.tolist(), scale
+    ([[-1.0, 0.0], [1.0, 0.0]], [2.0, 0.0], 2.0)
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if points.shape[0] == 0:
+        return points.copy(), np.zeros(2), 1.0
+    centre = points.mean(axis=0)
+    spread = float(np.sqrt(np.mean(np.sum((points - centre) ** 2, axis=1))))
+    if spread <= 0.0:
+        spread = rms_radius
+    scale = spread / rms_radius
+    return (points - centre) / scale, centre, scale
+
+
+def code_temperatures(settings: TpsRpmSettings) -> FloatArray:
+    """Temperatures of the code schedule, T_init·r^j while the level is reached (86 by default).
+
+    >>> len(code_temperatures(TpsRpmSettings()))
+    86
+    """
+    return _schedule(settings.T_init, settings.T_init / settings.T_finalfac, settings.anneal_rate)
+
+
+def _schedule(initial: float, final: float, rate: float) -> FloatArray:
+    # Repeated multiplication, as cMIX does, so the number of levels matches the code exactly.
+    temperatures = []
+    temperature = initial
+    while True:
+        temperatures.append(temperature)
+        temperature *= rate
+        if temperature < final:
+            break
+    return np.asarray(temperatures)
+
+
+@dataclass
+class TpsRpmResult:
+    """Output of one TPS-RPM run.
+
+    Attributes:
+        correspondence: (K, N) final softassign matrix H (without slack).
+        matches: (M, 2) int pairs (template_index, data_index) from the thresholded H.
+        bending_energy: φ(f) in normalised coordinates (0 for affine maps and K <= 3).
+        warped_template: (K, 2) f(template) in image coordinates.
+        nonaffine: (K, 3) TPS coefficients c (normalised coordinates).
+        affine: (3, 3) affine part d (normalised coordinates).
+    """
+
+    correspondence: FloatArray
+    matches: IntArray
+    bending_energy: float
+    warped_template: FloatArray
+    nonaffine: FloatArray
+    affine: FloatArray
+    template_centre: FloatArray = field(repr=False)
+    template_scale: float = field(repr=False)
+    data_centre: FloatArray = field(repr=False)
+    data_scale: float = field(repr=False)
+    normalised_template: FloatArray = field(repr=False)
+
+    def transform(self, points: FloatArray) -> FloatArray:
+        """Map any image points (P, 2) through f; returns (P, 2) image coordinates."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        normalised = (points - self.template_centre) / self.template_scale
+        mapped = (
+            homogeneous(normalised) @ self.affine
+            + tps_kernel(normalised, self.normalised_template) @ self.nonaffine
+        )
+        return self.data_centre + self.data_scale * mapped[:, 1:3]
+
+
+class TpsRpmTemplate:
+    """A template prepared once for many TPS-RPM runs: normalisation, Φ, QR, fit operators.
+
+    Args:
+        template: (K, 2) template points in image coordinates.
+        settings: the run settings.
+    """
+
+    def __init__(self, template: FloatArray, settings: TpsRpmSettings | None = None) -> None:
+        self.settings = settings if settings is not None else TpsRpmSettings()
+        self.template = np.asarray(template, dtype=np.float64).reshape(-1, 2)
+        self.normalised, self.centre, self.scale = normalise_points(
+            self.template, self.settings.rms_radius
+        )
+        self.basis = TpsBasis.from_template(self.normalised)
+        count = max(self.template.shape[0], 1)
+        # Outlier slack m_out = e^-1 / sqrt(T0), T0 = largest squared radius (our centred T0).
+        squared_radius = float(np.max(np.sum(self.normalised**2, axis=1), initial=0.0))
+        self.outlier_mass = float(
+            np.exp(-1.0) / np.sqrt(squared_radius if squared_radius > 0 else 1.0)
+        )
+        self._operators: dict[tuple[float, ...], tuple[FloatArray, ...]] = {}
+        self._count = count
+
+    def operators(self, temperatures: FloatArray) -> tuple[FloatArray, ...]:
+        """Per-level fit operators for these temperatures (cached).
+
+        Returns:
+            ``bending (L,K,K)``, ``affine (L,3,K)``, ``offset (L,3,3)``, ``warp (L,K,K)``
+            and ``warp_offset (L,K,2)``: the warped template is ``warp_offset + warp @ y``.
+        """
+        key = tuple(float(value) for value in temperatures)
+        cached = self._operators.get(key)
+        if cached is not None:
+            return cached
+        temperatures = np.asarray(temperatures, dtype=np.float64)
+        factor = self._count * temperatures
+        bending, affine, offset = self.basis.linear_operators(
+            self.settings.lamda1_init * factor, self.settings.lamda2_init * factor
+        )
+        template_h = homogeneous(self.normalised)
+        # X = [1,U] d + Φ c with c = C Y and d = G0 + D Y, so X = [1,U] G0 + ([1,U] D + Φ C) Y.
+        # Column j of X depends on column j of Y only, so x, y coordinates need a (K, K) operator
+        # on the virtual targets and a constant offset; Y's column of ones feeds column 0 only.
+        warp = template_h[None] @ affine + self.basis.kernel[None] @ bending
+        warp_offset = (template_h[None] @ offset)[:, :, 1:3]
+        result = (bending, affine, offset, warp, warp_offset)
+        self._operators[key] = result
+        return result
+
+
+def threshold_matches(correspondence: FloatArray, threshold: float = 0.5) -> IntArray:
+    """One-to-one pairs of a correspondence matrix (§3.5).
+
+    A pair (p, q) is kept when h_pq > threshold and h_pq is the largest entry of row p and of
+    column q.
+
+    Args:
+        correspondence: (K, N) matrix.
+        threshold: minimal entry.
+
+    Returns:
+        (M, 2) int array of (template_index, data_index), sorted by template index.
+
+    >>> threshold_matches(np.array([[0.9, 0.05], [0.6, 0.3]]))
+    array([[0, 0]])
+    """
+    rows, columns = correspondence.shape
+    if rows == 0 or columns == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    best_column = np.argmax(correspondence, axis=1)
+    best_row = np.argmax(correspondence, axis=0)
+    template_index = np.arange(rows)
+    keep = (correspondence[template_index, best_column] > threshold) & (
+        best_row[best_column] == template_index
+    )
+    return np.stack([template_index[keep], best_column[keep]], axis=1).astype(np.int64)
+
+
+def _sinkhorn(
+    affinity: FloatArray,
+    row_slack: FloatArray,
+    column_slack: FloatArray,
+    max_sweeps: int,
+    tolerance: float,
+    initial_row_scale: float,
+) -> tuple[FloatArray, FloatArray]:
+    """Scaling vectors of the two-way normalisation with constant outlier slack.
+
+    Args:
+        affinity: (K, N, B) non-negative affinities E.
+        row_slack: (B,) outlier-column entry m_out divided by initial_row_scale.
+        column_slack: (B,) outlier-row entry m_out.
+        max_sweeps: maximum row+column sweeps.
+        tolerance: per data set, stop once mean((s-1)², (t-1)²) < tolerance².
+        initial_row_scale: factor that turns E into the code's raw m (T^-1/2); it only matters
+            for the first sweep's stopping test, which is not scale-invariant.
+
+    Returns:
+        Row scaling (K, B) and column scaling (N, B): H = a_p E_pq b_q.
+    """
+    rows, columns, batch = affinity.shape
+    row_scale = np.full((rows, batch), initial_row_scale, dtype=affinity.dtype)
+    column_scale = np.ones((columns, batch), dtype=affinity.dtype)
+    limit = tolerance * tolerance * (rows + columns)
+    # A data set that meets the test has its scalings saved; it keeps riding along in the
+    # arrays (its later values are discarded) until half of them are done, and then the
+    # arrays are compacted. That keeps late sweeps cheap without a copy per sweep.
+    index = np.arange(batch)  # data set of each column of the working arrays
+    active = np.ones(batch, dtype=bool)  # not yet stopped, per working column
+    sub_affinity, sub_row, sub_column = affinity, row_scale, column_scale
+    for _ in range(max_sweeps):
+        # Row p's slack is row_slack·a_p (never column-normalised); column q's is
+        # column_slack·b_q (never row-normalised).
+        row_sums = sub_row * (np.einsum("knb,nb->kb", sub_affinity, sub_column) + row_slack)
+        sub_row = sub_row / row_sums
+        column_sums = sub_column * (np.einsum("knb,kb->nb", sub_affinity, sub_row) + column_slack)
+        sub_column = sub_column / column_sums
+        row_sums -= 1.0
+        column_sums -= 1.0
+        error = np.einsum("kb,kb->b", row_sums, row_sums) + np.einsum(
+            "nb,nb->b", column_sums, column_sums
+        )
+        stopping = active & (error < limit)
+        if not stopping.any():
+            continue
+        row_scale[:, index[stopping]] = sub_row[:, stopping]
+        column_scale[:, index[stopping]] = sub_column[:, stopping]
+        active &= ~stopping
+        remaining = int(active.sum())
+        if remaining == 0:
+            return row_scale, column_scale
+        if 2 * remaining <= active.size:
+            sub_affinity = sub_affinity[:, :, active]
+            sub_row, sub_column = sub_row[:, active], sub_column[:, active]
+            row_slack, column_slack = row_slack[active], column_slack[active]
+            index = index[active]
+            active = np.ones(remaining, dtype=bool)
+    row_scale[:, index[active]] = sub_row[:, active]
+    column_scale[:, index[active]] = sub_column[:, active]
+    return row_scale, column_scale
+
+
+def _anneal(
+    templates: Sequence[TpsRpmTemplate],
+    owner: IntArray,
+    data: FloatArray,
+    temperatures: FloatArray,
+    rng: np.random.Generator | None,
+) -> tuple[FloatArray, FloatArray]:
+    """The annealing loop on normalised data.
+
+    Args:
+        templates: prepared templates, all with the same K and settings.
+        owner: (B,) non-decreasing index of each data set's template.
+        data: (B, N, 2) normalised data sets.
+        temperatures: (L,) schedule.
+        rng: generator of the symmetry-breaking noise, or None.
+
+    Returns:
+        Final H (B, K, N) and final virtual targets y (B, K, 2), normalised coordinates.
+    """
+    settings = templates[0].settings
+    count = templates[0].normalised.shape[0]
+    batch, columns, _ = data.shape
+    dtype = np.float32 if settings.precision == "float32" else np.float64
+    operators = [
+        tuple(array.astype(dtype) for array in prepared.operators(temperatures))
+        for prepared in templates
+    ]
+    stacked_template = np.stack([prepared.normalised for prepared in templates])[owner]
+    stacked_template = stacked_template.astype(dtype)
+    outlier_mass = np.array([prepared.outlier_mass for prepared in templates])[owner]
+    outlier_mass = outlier_mass.astype(dtype)
+    data = data.astype(dtype)
+    final_h = np.zeros((batch, count, columns))
+    final_targets = np.zeros((batch, count, 2))
+    alive = np.arange(batch)
+    alive_owner = owner
+    data_x = np.ascontiguousarray(data[:, :, 0].T)  # (N, B)
+    data_y = np.ascontiguousarray(data[:, :, 1].T)
+    warped_x = np.ascontiguousarray(stacked_template[:, :, 0].T)  # (K, B)
+    warped_y = np.ascontiguousarray(stacked_template[:, :, 1].T)
+    previous_h: FloatArray | None = None
+    h = np.zeros((count, columns, batch), dtype=dtype)
+    targets_x, targets_y = warped_x, warped_y
+    noise_scale = 0.001 / count
+    exponent_cap = 80.0 if dtype == np.float32 else 700.0
+    for level, temperature_value in enumerate(temperatures):
+        temperature = float(temperature_value)
+        inverse_root = 1.0 / math.sqrt(temperature)
+        # E = exp(-d²/T) is the code's m without its T^-1/2 factor; the row scaling absorbs it.
+        row_slack = outlier_mass * math.sqrt(temperature)
+        scaled_x = data_x * inverse_root
+        scaled_y = data_y * inverse_root
+        # Data sets are sorted by template, so each template owns one contiguous slice.
+        bounds = np.searchsorted(alive_owner, np.arange(len(templates) + 1))
+        for _ in range(settings.perT_maxit):
+            difference = warped_x[:, None, :] * inverse_root - scaled_x[None, :, :]
+            np.multiply(difference, difference, out=difference)
+            other = warped_y[:, None, :] * inverse_root - scaled_y[None, :, :]
+            np.multiply(other, other, out=other)
+            difference += other
+            # Capping d²/T keeps exp() out of subnormal numbers, which are very slow on x86;
+            # exp(-cap) is far below anything that can change H.
+            np.minimum(difference, exponent_cap, out=difference)
+            np.negative(difference, out=difference)
+            affinity = np.exp(difference, out=difference)
+            if rng is not None:
+                affinity += (
+                    rng.standard_normal(affinity.shape) * (noise_scale * np.sqrt(temperature))
+                ).astype(dtype)
+            if settings.mode == "rpm":
+                row_scale, column_scale = _sinkhorn(
+                    affinity,
+                    row_slack,
+                    outlier_mass,
+                    settings.sinkhorn_maxit,
+                    settings.sinkhorn_tol,
+                    inverse_root,
+                )
+            else:
+                row_scale = np.ones((count, affinity.shape[2]), dtype=dtype)
+                column_scale = 1.0 / (affinity.sum(axis=0) + row_slack)
+            # Virtual targets y_p = Σ_q h_pq w_q / Σ_q h_pq; the row scaling cancels.
+            weight_sum = np.einsum("knb,nb->kb", affinity, column_scale)
+            weighted_x = np.einsum("knb,nb->kb", affinity, column_scale * data_x)
+            weighted_y = np.einsum("knb,nb->kb", affinity, column_scale * data_y)
+            usable = row_scale * weight_sum >= _ROW_SUM_FLOOR
+            safe_sum = np.where(usable, weight_sum, 1.0)
+            targets_x = np.where(usable, weighted_x / safe_sum, warped_x)
+            targets_y = np.where(usable, weighted_y / safe_sum, warped_y)
+            warped_x = np.empty_like(targets_x)
+            warped_y = np.empty_like(targets_y)
+            for index, (_, _, _, warp, warp_offset) in enumerate(operators):
+                first, last = bounds[index], bounds[index + 1]
+                if first == last:
+                    continue
+                width = last - first
+                moved = warp[level] @ np.concatenate(
+                    [targets_x[:, first:last], targets_y[:, first:last]], axis=1
+                )
+                warped_x[:, first:last] = warp_offset[level][:, 0:1] + moved[:, :width]
+                warped_y[:, first:last] = warp_offset[level][:, 1:2] + moved[:, width:]
+        h = row_scale[:, None, :] * affinity * column_scale[None, :, :]
+        if settings.early_stop and level + 1 < len(temperatures):
+            if previous_h is not None:
+                change = np.abs(h - previous_h).max(axis=(0, 1))
+                finished = change < settings.early_stop_tol
+                if finished.any():
+                    done = alive[finished]
+                    final_h[done] = np.moveaxis(h[:, :, finished], 2, 0)
+                    final_targets[done, :, 0] = targets_x[:, finished].T
+                    final_targets[done, :, 1] = targets_y[:, finished].T
+                    keep = ~finished
+                    alive, alive_owner = alive[keep], alive_owner[keep]
+                    if alive.size == 0:
+                        return final_h, final_targets
+                    h = h[:, :, keep]
+                    data_x, data_y = data_x[:, keep], data_y[:, keep]
+                    warped_x, warped_y = warped_x[:, keep], warped_y[:, keep]
+                    outlier_mass = outlier_mass[keep]
+            previous_h = h
+    final_h[alive] = np.moveaxis(h, 2, 0)
+    final_targets[alive, :, 0] = targets_x.T
+    final_targets[alive, :, 1] = targets_y.T
+    return final_h, final_targets
+
+
+def _paper_temperatures(template: FloatArray, data: FloatArray, rate: float) -> FloatArray:
+    """CVIU rule: T from the largest squared pair distance to the template's mean squared NN."""
+    cross = np.sum((template[:, None, :] - data[None, :, :]) ** 2, axis=2)
+    within = np.sum((template[:, None, :] - template[None, :, :]) ** 2, axis=2)
+    np.fill_diagonal(within, np.inf)
+    nearest = within.min(axis=1)
+    finite = nearest[np.isfinite(nearest)]
+    initial = float(cross.max())
+    final = float(np.mean(finite)) if finite.size else 1.0
+    if initial <= final:
+        initial = final / rate
+    return _schedule(initial, final, rate)
+
+
+@dataclass
+class TpsRpmBatch:
+    """Array outputs of a batch of TPS-RPM runs (B data sets of N points, K template points).
+
+    Attributes:
+        correspondence: (B, K, N) final H.
+        matched: (B, K) data index matched to each template point, -1 when none.
+        bending_energy: (B,) φ in normalised coordinates.
+        warped_template: (B, K, 2) f(template) in image coordinates.
+        nonaffine: (B, K, 3) c; affine: (B, 3, 3) d (normalised coordinates).
+        data_centre: (B, 2); data_scale: (B,) data normalisation.
+        owner: (B,) template index of each run.
+    """
+
+    correspondence: FloatArray
+    matched: IntArray
+    bending_energy: FloatArray
+    warped_template: FloatArray
+    nonaffine: FloatArray
+    affine: FloatArray
+    data_centre: FloatArray
+    data_scale: FloatArray
+    owner: IntArray
+
+    def result(self, index: int, templates: Sequence[TpsRpmTemplate]) -> TpsRpmResult:
+        """The :class:`TpsRpmResult` of run ``index``."""
+        prepared = templates[int(self.owner[index])]
+        row = self.matched[index]
+        matches = np.stack([np.nonzero(row >= 0)[0], row[row >= 0]], axis=1).astype(np.int64)
+        return TpsRpmResult(
+            correspondence=self.correspondence[index],
+            matches=matches.reshape(-1, 2),
+            bending_energy=float(self.bending_energy[index]),
+            warped_template=self.warped_template[index],
+            nonaffine=self.nonaffine[index],
+            affine=self.affine[index],
+            template_centre=prepared.centre,
+            template_scale=prepared.scale,
+            data_centre=self.data_centre[index],
+            data_scale=float(self.data_scale[index]),
+            normalised_template=prepared.normalised,
+        )
+
+
+def batch_matches(correspondence: FloatArray, threshold: float) -> IntArray:
+    """Vectorised :func:`threshold_matches`: (B, K, N) -> (B, K) data index or -1."""
+    batch, rows, columns = correspondence.shape
+    if rows == 0 or columns == 0:
+        return np.full((batch, rows), -1, dtype=np.int64)
+    best_column = np.argmax(correspondence, axis=2)  # (B, K)
+    best_row = np.argmax(correspondence, axis=1)  # (B, N)
+    value = np.take_along_axis(correspondence, best_column[:, :, None], axis=2)[:, :, 0]
+    mutual = np.take_along_axis(best_row, best_column, axis=1) == np.arange(rows)[None, :]
+    return np.where((value > threshold) & mutual, best_column, -1).astype(np.int64)
+
+
+def tps_rpm_multi_batch(
+    templates: Sequence[TpsRpmTemplate], owner: IntArray, data_batch: FloatArray
+) -> TpsRpmBatch:
+    """TPS-RPM of several templates (same K and settings) against B data sets of equal size.
+
+    Args:
+        templates: prepared templates.
+        owner: (B,) index into ``templates`` for each data set.
+        data_batch: (B, N, 2) data sets in image coordinates.
+
+    Returns:
+        The array outputs, in the order of ``data_batch``.
+    """
+    if len(templates) == 0:
+        raise ValueError("at least one template is needed")
+    settings = templates[0].settings
+    count = templates[0].template.shape[0]
+    if any(p.settings != settings or p.template.shape[0] != count for p in templates):
+        raise ValueError("all templates must share the settings and the number of points")
+    data_batch = np.asarray(data_batch, dtype=np.float64)
+    if data_batch.ndim != 3 or data_batch.shape[2] != 2:
+        raise ValueError(f"data_batch must have shape (B, N, 2), got {data_batch.shape}")
+    owner = np.asarray(owner, dtype=np.int64).reshape(-1)
+    batch, columns, _ = data_batch.shape
+    if owner.shape[0] != batch:
+        raise ValueError("owner must give one template index per data set")
+    owned = [templates[int(i)] for i in owner]
+    if settings.normalisation == "separate" and columns > 0:
+        centres = data_batch.mean(axis=1)
+        spread = np.sqrt(np.mean(np.sum((data_batch - centres[:, None, :]) ** 2, axis=2), axis=1))
+        scales = np.where(spread > 0, spread, settings.rms_radius) / settings.rms_radius
+    else:
+        centres = np.array([p.centre for p in owned], dtype=np.float64).reshape(batch, 2)
+        scales = np.array([p.scale for p in owned], dtype=np.float64)
+    if count == 0 or columns == 0 or batch == 0:
+        return TpsRpmBatch(
+            correspondence=np.zeros((batch, count, columns)),
+            matched=np.full((batch, count), -1, dtype=np.int64),
+            bending_energy=np.zeros(batch),
+            warped_template=np.array([p.template for p in owned], dtype=np.float64).reshape(
+                batch, count, 2
+            ),
+            nonaffine=np.zeros((batch, count, 3)),
+            affine=np.repeat(np.eye(3)[None], batch, axis=0),
+            data_centre=np.array([p.centre for p in owned], dtype=np.float64).reshape(batch, 2),
+            data_scale=np.array([p.scale for p in owned], dtype=np.float64),
+            owner=owner,
+        )
+    normalised = (data_batch - centres[:, None, :]) / scales[:, None, None]
+    rng = None if settings.noise_seed is None else np.random.default_rng(settings.noise_seed)
+    order = np.argsort(owner, kind="stable")
+    final_h = np.zeros((batch, count, columns))
+    final_targets = np.zeros((batch, count, 2))
+    schedules: list[FloatArray] = []
+    if settings.schedule == "code":
+        temperatures = code_temperatures(settings)
+        h, targets = _anneal(templates, owner[order], normalised[order], temperatures, rng)
+        final_h[order], final_targets[order] = h, targets
+        schedules = [temperatures] * batch
+    else:
+        for index in range(batch):
+            prepared = templates[int(owner[index])]
+            temperatures = _paper_temperatures(
+                prepared.normalised, normalised[index], settings.anneal_rate
+            )
+            h, targets = _anneal(
+                [prepared],
+                np.zeros(1, dtype=np.int64),
+                normalised[index : index + 1],
+                temperatures,
+                rng,
+            )
+            final_h[index], final_targets[index] = h[0], targets[0]
+            schedules.append(temperatures)
+    nonaffine = np.zeros((batch, count, 3))
+    affine = np.zeros((batch, 3, 3))
+    bending = np.zeros(batch)
+    warped = np.zeros((batch, count, 2))
+    targets_h = np.concatenate([np.ones((batch, count, 1)), final_targets], axis=2)
+    for template_index, prepared in enumerate(templates):
+        members = np.nonzero(owner == template_index)[0]
+        if settings.schedule == "code" and members.size:
+            groups = [members]
+        else:
+            groups = [members[i : i + 1] for i in range(members.size)]
+        for group in groups:
+            if group.size == 0:
+                continue
+            bending_op, affine_op, offset, _, _ = prepared.operators(schedules[int(group[0])])
+            c = bending_op[-1] @ targets_h[group]  # (G, K, 3)
+            d = offset[-1] + affine_op[-1] @ targets_h[group]  # (G, 3, 3)
+            nonaffine[group], affine[group] = c, d
+            warp = c[:, :, 1:3]
+            bending[group] = np.maximum(
+                np.einsum("gki,kj,gji->g", warp, prepared.basis.kernel, warp), 0.0
+            )
+            mapped = homogeneous(prepared.normalised)[None] @ d + prepared.basis.kernel[None] @ c
+            warped[group] = centres[group, None, :] + scales[group, None, None] * mapped[:, :, 1:3]
+    return TpsRpmBatch(
+        correspondence=final_h,
+        matched=batch_matches(final_h, settings.match_threshold),
+        bending_energy=bending,
+        warped_template=warped,
+        nonaffine=nonaffine,
+        affine=affine,
+        data_centre=centres,
+        data_scale=scales,
+        owner=owner,
+    )
+
+
+def tps_rpm_batch(
+    template: FloatArray | TpsRpmTemplate,
+    data_batch: FloatArray,
+    settings: TpsRpmSettings | None = None,
+) -> list[TpsRpmResult]:
+    """Run TPS-RPM of one template against B data sets of equal size in one vectorised loop.
+
+    Args:
+        template: (K, 2) image points, or a :class:`TpsRpmTemplate` prepared once (its settings
+            are used and ``settings`` must be None or the same).
+        data_batch: (B, N, 2) image points.
+        settings: run settings (defaults of §3.3/§10 when None).
+
+    Returns:
+        B results, identical to B calls of :func:`tps_rpm` (up to float rounding); with
+        ``noise_seed`` set the batch draws its noise from one generator.
+    """
+    if isinstance(template, TpsRpmTemplate):
+        prepared = template
+        if settings is not None and settings != prepared.settings:
+            raise ValueError("settings differ from those the template was prepared with")
+    else:
+        prepared = TpsRpmTemplate(template, settings)
+    data_batch = np.asarray(data_batch, dtype=np.float64)
+    if data_batch.ndim != 3 or data_batch.shape[2] != 2:
+        raise ValueError(f"data_batch must have shape (B, N, 2), got {data_batch.shape}")
+    outputs = tps_rpm_multi_batch(
+        [prepared], np.zeros(data_batch.shape[0], dtype=np.int64), data_batch
+    )
+    return [outputs.result(index, [prepared]) for index in range(data_batch.shape[0])]
+
+
+def tps_rpm(
+    template: FloatArray | TpsRpmTemplate,
+    data: FloatArray,
+    settings: TpsRpmSettings | None = None,
+) -> TpsRpmResult:
+    """Register a template (K, 2) onto data (N, 2), both in image coordinates (§3).
+
+    >>> square = np.array([[0.0, 0.0], [10, 0], [10, 10], [0, 10], [5, 2]])
+    >>> result = tps_rpm(square, square * 2 + 7)
+    >>> result.matches[:, 1].tolist(), round(result.bending_energy, 6)
+    ([0, 1, 2, 3, 4], 0.0)
+    """
+    data = np.asarray(data, dtype=np.float64).reshape(-1, 2)
+    return tps_rpm_batch(template, data[None], settings)[0]
+
+
+def match_points(
+    template: FloatArray, data: FloatArray, settings: TpsRpmSettings | None = None
+) -> tuple[IntArray, FloatArray, TpsRpmResult | None]:
+    """One-to-one association of template points with data points through TPS-RPM.
+
+    Used where TPS-RPM replaces a distance-based assignment (the Kalman3 baseline and the plain
+    ``tps-rpm`` gap matcher): matched template points take their data point, unmatched ones
+    their TPS-mapped position.
+
+    Args:
+        template: ``(K, 2)`` points (predictions).
+        data: ``(N, 2)`` points (detections).
+        settings: TPS-RPM settings.
+
+    Returns:
+        ``(K,)`` data row per template point (-1 when unmatched), ``(K, 2)`` positions, and the
+        TPS-RPM result (None when either set is empty).
+
+    >>> rows, positions, _ = match_points(np.array([[0.0, 0], [9, 0], [9, 9], [0, 9]]),
+    ...                                   np.array([[1.0, 1], [0, 10], [10, 10], [10, 1]]))
+    >>> rows.tolist()
+    [0, 3, 2, 1]
+    """
+    template = np.asarray(template, dtype=np.float64).reshape(-1, 2)
+    data = np.asarray(data, dtype=np.float64).reshape(-1, 2)
+    rows = np.full(len(template), -1, dtype=np.int64)
+    if len(template) == 0 or len(data) == 0:
+        return rows, template.copy(), None
+    result = tps_rpm(template, data, settings)
+    positions = result.transform(template)
+    if len(result.matches):
+        rows[result.matches[:, 0]] = result.matches[:, 1]
+        positions[result.matches[:, 0]] = data[result.matches[:, 1]]
+    return rows, positions, result

@@ -1,0 +1,584 @@
+"""Window-based TPS-RPM association of predicted points with detections (ALGORITHMS.md §4).
+
+Pure maths, independent of frames: ``U`` (K, 2) are the points predicted for one candidate (one
+AR order), ``V`` (N, 2) the detections on frame b, and an optional appearance distance matrix
+(K, N). Steps: every 4-subset of V spans an inclusive bounding box whose members form a window
+W; windows are deduplicated (bitmasks) and kept when ceil(0.9K) <= |W| <= floor(1.2K)
+(:func:`build_windows`, shared by all candidates); then hull shape prescreen, TPS-RPM per
+window (batched by window size and across candidates), post-RPM prune, cost
+ψ = φ + λ1 (K − d_W) + λ2 E_a, best window, and the §4.6 fallback chain.
+
+Shape checks (both hull cuts) can be evaluated lazily (default): all windows are registered,
+then the windows are visited in increasing ψ and the first that passes both cuts wins. That is
+the same window the eager order (prescreen, RPM on the survivors, prune, argmin) selects, with
+ties broken by window order in both, but it computes Δ for a handful of windows instead of
+all of them. ``lazy_shape_checks=False`` runs the eager order and gives exact counts.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict, Field
+from scipy.optimize import linear_sum_assignment
+
+from trackfw_plugins.maths.shape_distance import (
+    HullShapeMatcher,
+    ShapeDistanceSettings,
+    hull_polygon,
+)
+from trackfw_plugins.maths.tps_rpm import (
+    TpsRpmSettings,
+    TpsRpmTemplate,
+    tps_rpm_multi_batch,
+)
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+_COMBINATION_CHUNK = 200_000
+#: Costs closer than this are a tie (the smaller AR order wins, ALGORITHMS.md 4.7).
+TIE_TOLERANCE = 1e-6
+
+FALLBACK_NONE = "none"
+FALLBACK_NO_SHAPE_CUTS = "no_shape_cuts"
+FALLBACK_ALL_DETECTIONS = "all_detections"
+FALLBACK_APPEARANCE = "appearance_hungarian"
+FALLBACK_NO_DETECTIONS = "no_detections"
+
+
+class WindowAssociationParams(BaseModel):
+    """Parameters of the window association (§4, §10 ``window``)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    subset_points: int = Field(4, ge=1, description="Points of V that span a candidate window.")
+    size_lo: float = Field(0.9, gt=0, description="Keep W when |W| >= ceil(size_lo * |U|).")
+    size_hi: float = Field(1.2, gt=0, description="Keep W when |W| <= floor(size_hi * |U|).")
+    hull_pre: float = Field(0.6, ge=0, description="Discard W when Δ(C_U, C_W) >= hull_pre.")
+    hull_post: float = Field(
+        0.5, ge=0, description="Discard W when Δ of the matched pairs' hulls >= hull_post."
+    )
+    lambda1: float = Field(1.0, ge=0, description="Weight of the unmatched count |U| - d_W.")
+    lambda2: float = Field(0.35, ge=0, description="Weight of the appearance term E_a.")
+    min_matches: int = Field(3, ge=1, description="Discard W when d_W < min_matches.")
+    small_U_exhaustive_max: int = Field(  # noqa: N815 - the config key of §10
+        5000, ge=0, description="When |U| or |V| < 4: all |U|-subsets if C(|V|,|U|) <= this."
+    )
+    lazy_shape_checks: bool = Field(
+        True,
+        description="Evaluate the hull cuts in increasing ψ order after RPM (same result, far "
+        "fewer Δ computations); False runs prescreen -> RPM -> prune eagerly.",
+    )
+    rpm: TpsRpmSettings = Field(default_factory=TpsRpmSettings, description="TPS-RPM settings.")
+    shape: ShapeDistanceSettings = Field(
+        default_factory=ShapeDistanceSettings, description="Shape distance Δ settings."
+    )
+
+
+@dataclass
+class WindowSet:
+    """Candidate windows of one detection set for one template size.
+
+    Attributes:
+        members: (W, N) bool, row w marks the detections inside window w.
+        total: number of boxes enumerated (C(N, subset_points), or C(N, K) in the small case).
+        after_dedup: distinct membership sets.
+        after_size: windows left after the size prescreen (= W).
+        rule: "boxes", "small_subsets" or "all_detections" (§4.2 small-set rule).
+    """
+
+    members: BoolArray
+    total: int
+    after_dedup: int
+    after_size: int
+    rule: str
+
+
+def _combinations(count: int, size: int) -> IntArray:
+    total = math.comb(count, size)
+    flat = np.fromiter(
+        itertools.chain.from_iterable(itertools.combinations(range(count), size)),
+        dtype=np.int64,
+        count=total * size,
+    )
+    return flat.reshape(total, size)
+
+
+def _pack(members: BoolArray) -> NDArray[np.uint8]:
+    packed = np.packbits(members, axis=1, bitorder="little")
+    width = -(-packed.shape[1] // 8) * 8
+    padded = np.zeros((packed.shape[0], width), dtype=np.uint8)
+    padded[:, : packed.shape[1]] = packed
+    return padded
+
+
+def _unique_rows(keys: NDArray[np.uint8]) -> IntArray:
+    """Indices of the first occurrence of each distinct row, in order of first occurrence."""
+    if keys.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    words = np.ascontiguousarray(keys).view(np.uint64)
+    if words.shape[1] == 1:
+        _, first = np.unique(words[:, 0], return_index=True)
+    else:
+        _, first = np.unique(words, axis=0, return_index=True)
+    return np.sort(first).astype(np.int64)
+
+
+def build_windows(
+    detections: FloatArray, template_size: int, params: WindowAssociationParams | None = None
+) -> WindowSet:
+    """All candidate windows of V for |U| = template_size (§4.1–§4.2), shared by all candidates.
+
+    Args:
+        detections: (N, 2) detection points V.
+        template_size: |U| (the same for every AR order).
+        params: window parameters.
+
+    Returns:
+        The deduplicated, size-filtered windows in order of first appearance.
+
+    >>> v = np.array([[0.0, 0], [1, 0], [2, 0], [3, 0], [4, 0]])
+    >>> windows = build_windows(v, 4)
+    >>> windows.total, windows.after_dedup, windows.members.sum(axis=1).tolist()
+    (5, 3, [4, 4])
+    """
+    params = params if params is not None else WindowAssociationParams()
+    detections = np.asarray(detections, dtype=np.float64).reshape(-1, 2)
+    count = detections.shape[0]
+    subset = params.subset_points
+    if template_size < subset or count < subset:
+        return _small_windows(count, template_size, params)
+    low = math.ceil(params.size_lo * template_size - 1e-9)
+    high = math.floor(params.size_hi * template_size + 1e-9)
+    x, y = detections[:, 0], detections[:, 1]
+    keys: list[NDArray[np.uint8]] = []
+    sizes: list[IntArray] = []
+    total = math.comb(count, subset)
+    combos = _combinations(count, subset)
+    for start in range(0, total, _COMBINATION_CHUNK):
+        chunk = combos[start : start + _COMBINATION_CHUNK]
+        box_x, box_y = x[chunk], y[chunk]
+        # Inclusive bounds [OURS]: the four spanning points are always members.
+        members = (
+            (x[None, :] >= box_x.min(axis=1)[:, None])
+            & (x[None, :] <= box_x.max(axis=1)[:, None])
+            & (y[None, :] >= box_y.min(axis=1)[:, None])
+            & (y[None, :] <= box_y.max(axis=1)[:, None])
+        )
+        keys.append(_pack(members))
+        sizes.append(members.sum(axis=1))
+    all_keys = np.concatenate(keys)
+    all_sizes = np.concatenate(sizes)
+    first = _unique_rows(all_keys)
+    sized = first[(all_sizes[first] >= low) & (all_sizes[first] <= high)]
+    members = np.unpackbits(all_keys[sized], axis=1, count=count, bitorder="little").astype(bool)
+    return WindowSet(members, total, int(first.size), int(sized.size), "boxes")
+
+
+def _small_windows(count: int, template_size: int, params: WindowAssociationParams) -> WindowSet:
+    """§4.2 [OURS]: all |U|-subsets when C(N, K) is small, otherwise the single window W = V."""
+    possible = math.comb(count, template_size) if 0 < template_size <= count else 0
+    if 0 < possible <= params.small_U_exhaustive_max:
+        combos = _combinations(count, template_size)
+        members = np.zeros((possible, count), dtype=bool)
+        np.put_along_axis(members, combos, True, axis=1)
+        return WindowSet(members, possible, possible, possible, "small_subsets")
+    members = np.ones((1 if count > 0 else 0, count), dtype=bool)
+    return WindowSet(members, 1, 1, members.shape[0], "all_detections")
+
+
+@dataclass
+class WindowDiagnostics:
+    """Counts of one association; None where lazy evaluation did not compute a count."""
+
+    windows_total: int = 0
+    after_dedup: int = 0
+    after_size: int = 0
+    after_hull_prescreen: int | None = None
+    after_rpm_prune: int | None = None
+    rpm_runs: int = 0
+    with_min_matches: int = 0
+    shape_checks: int = 0
+    window_rule: str = "boxes"
+    fallback: str = FALLBACK_NONE
+
+
+@dataclass
+class WindowAssociationResult:
+    """Association of one candidate U with V.
+
+    Attributes:
+        positions: (K, 2) target positions on frame b.
+        matched_detection: (K,) row of V matched to each target, -1 when none.
+        cost: ψ = bending + lambda1·unmatched + lambda2·appearance.
+        bending: φ(f_W); unmatched: |U| − d_W; appearance: E_a (0 without a matrix).
+        window: indices into V of the chosen window W (empty for the Hungarian fallback).
+        diagnostics: counts and the fallback used.
+    """
+
+    positions: FloatArray
+    matched_detection: IntArray
+    cost: float
+    bending: float
+    unmatched: int
+    appearance: float
+    window: IntArray
+    diagnostics: WindowDiagnostics = field(default_factory=WindowDiagnostics)
+
+
+@dataclass
+class _Registered:
+    """RPM outputs of the windows of one candidate (window order; ``ran`` marks those run)."""
+
+    ran: BoolArray  # (W,)
+    matched: IntArray  # (W, K) detection index (into V) or -1
+    bending: FloatArray  # (W,)
+    warped: FloatArray  # (W, K, 2) f_W(U) in image coordinates
+    cost: FloatArray = field(default_factory=lambda: np.zeros(0))
+    appearance: FloatArray = field(default_factory=lambda: np.zeros(0))
+    count: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    @classmethod
+    def empty(cls, windows: int, size: int) -> _Registered:
+        return cls(
+            ran=np.zeros(windows, dtype=bool),
+            matched=np.full((windows, size), -1, dtype=np.int64),
+            bending=np.zeros(windows),
+            warped=np.zeros((windows, size, 2)),
+        )
+
+    def finish(self, appearance: FloatArray | None, params: WindowAssociationParams) -> None:
+        """Recompute d_W, E_a and ψ (windows not run get ψ = inf and d_W = -1)."""
+        size = self.matched.shape[1]
+        self.count = np.where(self.ran, (self.matched >= 0).sum(axis=1), -1)
+        self.appearance = _appearance_terms(self.matched, appearance)
+        cost = (
+            self.bending + params.lambda1 * (size - self.count) + params.lambda2 * self.appearance
+        )
+        self.cost = np.where(self.ran, cost, np.inf)
+
+
+def _register(
+    templates: Sequence[TpsRpmTemplate],
+    detections: FloatArray,
+    members: BoolArray,
+    needed: Sequence[BoolArray],
+    stores: Sequence[_Registered],
+) -> None:
+    """TPS-RPM of each template against its needed windows; one batched run per window size."""
+    sizes = members.sum(axis=1)
+    for size in np.unique(sizes):
+        group = sizes == size
+        owners, window_ids = [], []
+        for template_index, (mask, store) in enumerate(zip(needed, stores, strict=True)):
+            ids = np.nonzero(group & mask & ~store.ran)[0]
+            owners.append(np.full(ids.size, template_index, dtype=np.int64))
+            window_ids.append(ids)
+        owner = np.concatenate(owners)
+        if owner.size == 0:
+            continue
+        ids_all = np.concatenate(window_ids)
+        indices = np.nonzero(members[ids_all])[1].reshape(ids_all.size, int(size))
+        outputs = tps_rpm_multi_batch(templates, owner, detections[indices])
+        matched = np.where(
+            outputs.matched >= 0,
+            np.take_along_axis(indices, np.maximum(outputs.matched, 0), axis=1),
+            -1,
+        )
+        for template_index, store in enumerate(stores):
+            part = owner == template_index
+            ids = ids_all[part]
+            store.ran[ids] = True
+            store.matched[ids] = matched[part]
+            store.bending[ids] = outputs.bending_energy[part]
+            store.warped[ids] = outputs.warped_template[part]
+
+
+def _appearance_terms(matched: IntArray, appearance: FloatArray | None) -> FloatArray:
+    """E_a per window: mean appearance distance over the matched pairs (0 without pairs)."""
+    if appearance is None:
+        return np.zeros(matched.shape[0])
+    rows = np.arange(matched.shape[1])[None, :]
+    values = np.where(matched >= 0, appearance[rows, np.maximum(matched, 0)], 0.0)
+    pairs = (matched >= 0).sum(axis=1)
+    return np.divide(values.sum(axis=1), pairs, out=np.zeros(matched.shape[0]), where=pairs > 0)
+
+
+class _ShapeCache:
+    """Δ with memoised hulls: template subsets and detection subsets keyed by index tuples."""
+
+    def __init__(
+        self, predicted: FloatArray, detections: FloatArray, settings: ShapeDistanceSettings
+    ):
+        self.predicted = predicted
+        self.detections = detections
+        self.settings = settings
+        self.matchers: dict[tuple[int, ...], HullShapeMatcher] = {}
+        self.checks = 0
+
+    def distance(self, template_rows: IntArray, detection_rows: IntArray) -> float:
+        key = tuple(int(value) for value in template_rows)
+        matcher = self.matchers.get(key)
+        if matcher is None:
+            matcher = HullShapeMatcher(self.predicted[template_rows], self.settings)
+            self.matchers[key] = matcher
+        self.checks += 1
+        return float(
+            matcher.distances_to_polygons([hull_polygon(self.detections[detection_rows])])[0]
+        )
+
+    def many(self, template_rows: IntArray, detection_sets: Sequence[IntArray]) -> FloatArray:
+        key = tuple(int(value) for value in template_rows)
+        matcher = self.matchers.get(key)
+        if matcher is None:
+            matcher = HullShapeMatcher(self.predicted[template_rows], self.settings)
+            self.matchers[key] = matcher
+        self.checks += len(detection_sets)
+        return matcher.distances([self.detections[rows] for rows in detection_sets])
+
+
+def _post_prune_passes(
+    cache: _ShapeCache, matched_row: IntArray, params: WindowAssociationParams
+) -> bool:
+    template_rows = np.nonzero(matched_row >= 0)[0]
+    return cache.distance(template_rows, matched_row[template_rows]) < params.hull_post
+
+
+def _result_from_window(
+    detections: FloatArray,
+    registered: _Registered,
+    window_index: int,
+    window: IntArray,
+    diagnostics: WindowDiagnostics,
+) -> WindowAssociationResult:
+    matched = registered.matched[window_index].copy()
+    # Unmatched targets go to f_W(u_p) in image coordinates; matched ones to their detection.
+    positions = registered.warped[window_index].copy()
+    positions[matched >= 0] = detections[matched[matched >= 0]]
+    return WindowAssociationResult(
+        positions=positions,
+        matched_detection=matched,
+        cost=float(registered.cost[window_index]),
+        bending=float(registered.bending[window_index]),
+        unmatched=int(matched.shape[0] - registered.count[window_index]),
+        appearance=float(registered.appearance[window_index]),
+        window=window,
+        diagnostics=diagnostics,
+    )
+
+
+def _hungarian_fallback(
+    predicted: FloatArray,
+    detections: FloatArray,
+    appearance: FloatArray | None,
+    params: WindowAssociationParams,
+    diagnostics: WindowDiagnostics,
+) -> WindowAssociationResult:
+    """§4.6 step 3: Hungarian on E_a alone (on distances to the prediction without E_a)."""
+    count = predicted.shape[0]
+    if appearance is not None:
+        cost_matrix = np.asarray(appearance, dtype=np.float64)
+    else:
+        cost_matrix = np.sqrt(np.sum((predicted[:, None] - detections[None]) ** 2, axis=2))
+    rows, columns = linear_sum_assignment(cost_matrix)
+    matched = np.full(count, -1, dtype=np.int64)
+    matched[rows] = columns
+    positions = predicted.copy()
+    positions[rows] = detections[columns]
+    energy = (
+        float(appearance[rows, columns].mean()) if appearance is not None and rows.size else 0.0
+    )
+    unmatched = count - int(rows.size)
+    diagnostics.fallback = FALLBACK_APPEARANCE
+    return WindowAssociationResult(
+        positions=positions,
+        matched_detection=matched,
+        cost=params.lambda1 * unmatched + params.lambda2 * energy,
+        bending=0.0,
+        unmatched=unmatched,
+        appearance=energy,
+        window=np.zeros(0, dtype=np.int64),
+        diagnostics=diagnostics,
+    )
+
+
+def _choose(
+    template: TpsRpmTemplate,
+    detections: FloatArray,
+    appearance: FloatArray | None,
+    windows: WindowSet,
+    registered: _Registered,
+    prescreen: BoolArray | None,
+    params: WindowAssociationParams,
+    cache: _ShapeCache,
+) -> WindowAssociationResult:
+    """Best window of one candidate, with the §4.6 fallback chain."""
+    count = template.template.shape[0]
+    diagnostics = WindowDiagnostics(
+        windows_total=windows.total,
+        after_dedup=windows.after_dedup,
+        after_size=windows.after_size,
+        window_rule=windows.rule,
+    )
+    minimum = min(params.min_matches, count)
+    member_rows = [np.nonzero(row)[0] for row in windows.members]
+    diagnostics.rpm_runs = int(registered.ran.sum())
+    diagnostics.with_min_matches = int((registered.count >= minimum).sum())
+    order = np.argsort(registered.cost, kind="stable")
+    order = order[registered.count[order] >= minimum]
+    chosen: int | None = None
+    if prescreen is None:
+        # Lazy: visit windows by increasing ψ; the first passing both cuts is the argmin.
+        for index in order:
+            if cache.distance(np.arange(count), member_rows[index]) >= params.hull_pre:
+                continue
+            if _post_prune_passes(cache, registered.matched[index], params):
+                chosen = int(index)
+                break
+    else:
+        diagnostics.after_hull_prescreen = int(prescreen.sum())
+        passes = [_post_prune_passes(cache, registered.matched[i], params) for i in order]
+        diagnostics.after_rpm_prune = int(sum(passes))
+        chosen = next((int(i) for i, ok in zip(order, passes, strict=True) if ok), None)
+        if chosen is None:
+            # Fallback 1 needs the windows the prescreen removed as well.
+            _register([template], detections, windows.members, [~registered.ran], [registered])
+            registered.finish(appearance, params)
+            diagnostics.rpm_runs = int(registered.ran.sum())
+            order = np.argsort(registered.cost, kind="stable")
+            order = order[registered.count[order] >= minimum]
+    if chosen is None and order.size:
+        # Fallback 1: without both shape cuts the best window is the smallest ψ overall.
+        diagnostics.fallback = FALLBACK_NO_SHAPE_CUTS
+        chosen = int(order[0])
+    diagnostics.shape_checks = cache.checks
+    if chosen is not None:
+        return _result_from_window(detections, registered, chosen, member_rows[chosen], diagnostics)
+    # Fallback 2: TPS-RPM with W = V, accepted with any number of matches.
+    everything = np.ones((1, detections.shape[0]), dtype=bool)
+    whole = _Registered.empty(1, count)
+    _register([template], detections, everything, [np.ones(1, dtype=bool)], [whole])
+    whole.finish(appearance, params)
+    diagnostics.rpm_runs += 1
+    if whole.count[0] > 0:
+        diagnostics.fallback = FALLBACK_ALL_DETECTIONS
+        return _result_from_window(
+            detections, whole, 0, np.arange(detections.shape[0]), diagnostics
+        )
+    predicted = template.template
+    return _hungarian_fallback(predicted, detections, appearance, params, diagnostics)
+
+
+def associate_candidates(
+    candidates: Sequence[FloatArray],
+    detections: FloatArray,
+    appearance: FloatArray | None = None,
+    params: WindowAssociationParams | None = None,
+    windows: WindowSet | None = None,
+) -> list[WindowAssociationResult]:
+    """Window association of several candidate predictions (e.g. AR orders) with one V.
+
+    All candidates must have the same number of points K; the windows are built once and the
+    TPS-RPM runs of all candidates share one batched annealing loop per window size.
+
+    Args:
+        candidates: C arrays (K, 2) of predicted points U_k.
+        detections: (N, 2) detections V.
+        appearance: optional (K, N) appearance distances (rows: targets, columns: detections).
+        params: parameters.
+        windows: windows from :func:`build_windows` (built here when None).
+
+    Returns:
+        One result per candidate.
+    """
+    params = params if params is not None else WindowAssociationParams()
+    detections = np.asarray(detections, dtype=np.float64).reshape(-1, 2)
+    predicted_sets = [np.asarray(u, dtype=np.float64).reshape(-1, 2) for u in candidates]
+    if not predicted_sets:
+        return []
+    count = predicted_sets[0].shape[0]
+    if any(u.shape[0] != count for u in predicted_sets):
+        raise ValueError("all candidates must have the same number of points")
+    if appearance is not None:
+        appearance = np.asarray(appearance, dtype=np.float64)
+        if appearance.shape != (count, detections.shape[0]):
+            raise ValueError(
+                f"appearance must have shape ({count}, {detections.shape[0]}), "
+                f"got {appearance.shape}"
+            )
+    if count == 0 or detections.shape[0] == 0:
+        return [_no_detection_result(u, params) for u in predicted_sets]
+    if windows is None:
+        windows = build_windows(detections, count, params)
+    window_count = windows.members.shape[0]
+    templates = [TpsRpmTemplate(u, params.rpm) for u in predicted_sets]
+    caches = [_ShapeCache(u, detections, params.shape) for u in predicted_sets]
+    prescreens: list[BoolArray | None] = [None] * len(templates)
+    needed = [np.ones(window_count, dtype=bool) for _ in templates]
+    if not params.lazy_shape_checks:
+        member_rows = [np.nonzero(row)[0] for row in windows.members]
+        for index, cache in enumerate(caches):
+            passing = cache.many(np.arange(count), member_rows) < params.hull_pre
+            prescreens[index] = passing
+            needed[index] = passing
+    stores = [_Registered.empty(window_count, count) for _ in templates]
+    _register(templates, detections, windows.members, needed, stores)
+    for store in stores:
+        store.finish(appearance, params)
+    return [
+        _choose(template, detections, appearance, windows, store, prescreen, params, cache)
+        for template, store, prescreen, cache in zip(
+            templates, stores, prescreens, caches, strict=True
+        )
+    ]
+
+
+def associate_window(
+    predicted: FloatArray,
+    detections: FloatArray,
+    appearance: FloatArray | None = None,
+    params: WindowAssociationParams | None = None,
+    windows: WindowSet | None = None,
+) -> WindowAssociationResult:
+    """Window association of one candidate U (K, 2) with detections V (N, 2); see §4."""
+    return associate_candidates([predicted], detections, appearance, params, windows)[0]
+
+
+def _no_detection_result(
+    predicted: FloatArray, params: WindowAssociationParams
+) -> WindowAssociationResult:
+    count = predicted.shape[0]
+    return WindowAssociationResult(
+        positions=predicted.copy(),
+        matched_detection=np.full(count, -1, dtype=np.int64),
+        cost=params.lambda1 * count,
+        bending=0.0,
+        unmatched=count,
+        appearance=0.0,
+        window=np.zeros(0, dtype=np.int64),
+        diagnostics=WindowDiagnostics(fallback=FALLBACK_NO_DETECTIONS),
+    )
+
+
+def select_candidate(results: Sequence[WindowAssociationResult]) -> int:
+    """Index of the candidate with the smallest ψ; ties go to the first (smaller AR order).
+
+    >>> a = WindowAssociationResult(np.zeros((1, 2)), np.zeros(1, dtype=np.int64), 2.0, 0, 0, 0,
+    ...                             np.zeros(0, dtype=np.int64))
+    >>> b = WindowAssociationResult(np.zeros((1, 2)), np.zeros(1, dtype=np.int64), 1.0, 0, 0, 0,
+    ...                             np.zeros(0, dtype=np.int64))
+    >>> select_candidate([a, b, b])
+    1
+    """
+    if not results:
+        raise ValueError("no candidates to choose from")
+    costs = np.array([result.cost for result in results])
+    # float32 annealing leaves ~1e-7 noise on psi: equal costs within that are ties.
+    return int(np.flatnonzero(costs <= costs.min() + TIE_TOLERANCE)[0])

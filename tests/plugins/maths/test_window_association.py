@@ -1,0 +1,213 @@
+"""Tests of the window-based association (ALGORITHMS.md §4)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from trackfw_plugins.maths.tps_rpm import TpsRpmSettings, tps_rpm
+from trackfw_plugins.maths.window_association import (
+    FALLBACK_ALL_DETECTIONS,
+    FALLBACK_APPEARANCE,
+    FALLBACK_NO_DETECTIONS,
+    FALLBACK_NO_SHAPE_CUTS,
+    FALLBACK_NONE,
+    WindowAssociationParams,
+    WindowAssociationResult,
+    associate_candidates,
+    associate_window,
+    build_windows,
+    select_candidate,
+)
+
+
+def _pattern_scene(
+    detection_count: int, seed: int, size: int = 8, noise: float = 6.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A group pattern seen after a camera-pose change, among clutter outside its box.
+
+    Returns:
+        Predicted points U (size, 2), detections V (N, 2) and, per target, its row in V.
+    """
+    rng = np.random.default_rng(seed)
+    while True:
+        pattern = rng.uniform([0, 0], [500, 300], (size, 2))
+        gaps = np.sqrt(np.sum((pattern[:, None] - pattern[None]) ** 2, axis=2))
+        np.fill_diagonal(gaps, np.inf)
+        if gaps.min() > 60:
+            break
+    angle, scale = rng.uniform(-0.26, 0.26), rng.uniform(0.8, 1.25)
+    rotation = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    observed = (pattern - pattern.mean(axis=0)) @ rotation.T * scale
+    observed += rng.uniform([700, 400], [1200, 700]) + rng.normal(0, noise, (size, 2))
+    low, high = observed.min(axis=0) - 40, observed.max(axis=0) + 40
+    clutter: list[np.ndarray] = []
+    while len(clutter) < detection_count - size:
+        point = rng.uniform([0, 0], [1920, 1080])
+        if not np.all((point >= low) & (point <= high)):
+            clutter.append(point)
+    detections = np.vstack([observed, np.array(clutter).reshape(-1, 2)])
+    permutation = rng.permutation(detection_count)
+    predicted = pattern - pattern.mean(axis=0) + observed.mean(axis=0)
+    predicted += rng.normal(0, noise, (size, 2))
+    return predicted, detections[permutation], np.argsort(permutation)[:size]
+
+
+def _naive_windows(points: np.ndarray, template_size: int) -> list[frozenset[int]]:
+    seen: list[frozenset[int]] = []
+    for combo in itertools.combinations(range(len(points)), 4):
+        low, high = points[list(combo)].min(axis=0), points[list(combo)].max(axis=0)
+        inside = frozenset(
+            int(i) for i in np.nonzero(np.all((points >= low) & (points <= high), axis=1))[0]
+        )
+        if inside not in seen:
+            seen.append(inside)
+    low_size, high_size = math.ceil(0.9 * template_size), math.floor(1.2 * template_size)
+    return [w for w in seen if low_size <= len(w) <= high_size]
+
+
+def test_windows_match_a_naive_enumeration() -> None:
+    points = np.random.default_rng(0).uniform(0, 100, (13, 2))
+    windows = build_windows(points, 6)
+    expected = _naive_windows(points, 6)
+    found = [frozenset(np.nonzero(row)[0].tolist()) for row in windows.members]
+    assert found == expected
+    assert windows.total == math.comb(13, 4)
+    assert windows.after_size == len(expected) <= windows.after_dedup <= windows.total
+
+
+def test_window_bounds_are_inclusive() -> None:
+    grid = np.array([[x, y] for x in range(3) for y in range(3)], dtype=float)
+    windows = build_windows(grid, 4)
+    sizes = windows.members.sum(axis=1)
+    # The 2x2 corner squares hold exactly four points when the borders count as inside.
+    assert (sizes == 4).sum() >= 4
+
+
+def test_recovers_identities_of_a_transformed_pattern_among_clutter() -> None:
+    predicted, detections, truth = _pattern_scene(30, seed=30)
+    result = associate_window(predicted, detections)
+    assert result.matched_detection.tolist() == truth.tolist()
+    np.testing.assert_allclose(result.positions, detections[truth])
+    assert result.diagnostics.fallback == FALLBACK_NONE
+    assert result.diagnostics.windows_total == math.comb(30, 4)
+    assert result.diagnostics.after_size <= result.diagnostics.after_dedup
+    assert result.cost == pytest.approx(result.bending + 1.0 * result.unmatched)
+
+
+def test_unmatched_targets_are_placed_by_the_window_map() -> None:
+    predicted, detections, truth = _pattern_scene(8, seed=31)
+    visible = [int(truth[p]) for p in range(8) if p != 3]
+    stray = detections[truth[3]] + np.array([0.0, 400.0])
+    points = np.vstack([detections[visible], stray])
+    result = associate_window(predicted, points)
+    unmatched = np.nonzero(result.matched_detection < 0)[0]
+    assert result.unmatched == unmatched.size >= 1
+    window_map = tps_rpm(predicted, points[result.window])
+    np.testing.assert_allclose(
+        result.positions[unmatched], window_map.transform(predicted[unmatched]), atol=1e-9
+    )
+    matched = np.nonzero(result.matched_detection >= 0)[0]
+    np.testing.assert_array_equal(
+        result.positions[matched], points[result.matched_detection[matched]]
+    )
+
+
+def test_lazy_and_eager_shape_checks_choose_the_same_window() -> None:
+    predicted, detections, _ = _pattern_scene(16, seed=32)
+    lazy = associate_window(predicted, detections)
+    eager = associate_window(
+        predicted, detections, params=WindowAssociationParams(lazy_shape_checks=False)
+    )
+    assert lazy.matched_detection.tolist() == eager.matched_detection.tolist()
+    assert lazy.cost == eager.cost
+    assert lazy.window.tolist() == eager.window.tolist()
+    assert eager.diagnostics.after_hull_prescreen is not None
+    assert eager.diagnostics.rpm_runs == eager.diagnostics.after_hull_prescreen
+    assert lazy.diagnostics.shape_checks < eager.diagnostics.shape_checks
+
+
+def test_candidates_share_windows_and_the_best_is_selected() -> None:
+    predicted, detections, truth = _pattern_scene(18, seed=33)
+    rng = np.random.default_rng(1)
+    scrambled = rng.uniform(0, 1900, predicted.shape)
+    results = associate_candidates([scrambled, predicted, predicted], detections)
+    single = associate_window(predicted, detections)
+    assert results[1].cost == pytest.approx(single.cost, abs=1e-9)
+    assert select_candidate(results) == 1
+    assert results[1].matched_detection.tolist() == truth.tolist()
+
+
+def test_appearance_term_is_the_mean_over_matched_pairs() -> None:
+    predicted, detections, truth = _pattern_scene(14, seed=34)
+    appearance = np.random.default_rng(2).uniform(0.5, 1.0, (len(predicted), len(detections)))
+    appearance[np.arange(len(predicted)), truth] = 0.1
+    result = associate_window(predicted, detections, appearance)
+    matched = result.matched_detection
+    pairs = np.nonzero(matched >= 0)[0]
+    assert result.appearance == pytest.approx(appearance[pairs, matched[pairs]].mean())
+    assert result.cost == pytest.approx(
+        result.bending + result.unmatched + 0.35 * result.appearance
+    )
+
+
+def test_fallback_without_shape_cuts() -> None:
+    predicted, detections, truth = _pattern_scene(14, seed=35)
+    params = WindowAssociationParams(hull_pre=0.0)
+    result = associate_window(predicted, detections, params=params)
+    assert result.diagnostics.fallback == FALLBACK_NO_SHAPE_CUTS
+    assert result.matched_detection.tolist() == truth.tolist()
+
+
+def test_fallback_to_all_detections_when_no_window_fits() -> None:
+    predicted, detections, _ = _pattern_scene(8, seed=36)
+    # Four detections cannot form a window of 8-9 points.
+    result = associate_window(predicted, detections[:4])
+    assert result.diagnostics.fallback == FALLBACK_ALL_DETECTIONS
+    assert result.window.tolist() == [0, 1, 2, 3]
+    assert (result.matched_detection >= 0).sum() >= 1
+
+
+def test_fallback_to_hungarian_when_nothing_matches() -> None:
+    predicted, detections, truth = _pattern_scene(12, seed=37)
+    appearance = np.ones((len(predicted), len(detections)))
+    appearance[np.arange(len(predicted)), truth] = 0.0
+    params = WindowAssociationParams(rpm=TpsRpmSettings(match_threshold=0.99))
+    result = associate_window(predicted, detections, appearance, params)
+    assert result.diagnostics.fallback == FALLBACK_APPEARANCE
+    assert result.matched_detection.tolist() == truth.tolist()
+    assert result.cost == pytest.approx(0.0)
+
+
+def test_small_sets_enumerate_subsets_or_use_all_detections() -> None:
+    predicted = np.array([[0.0, 0.0], [100.0, 0.0], [40.0, 80.0]])
+    shift = np.array([500.0, 200.0])
+    detections = np.vstack([predicted + shift, [[900.0, 900.0], [20.0, 700.0]]])
+    windows = build_windows(detections, 3)
+    assert windows.rule == "small_subsets" and windows.after_size == math.comb(5, 3)
+    result = associate_window(predicted, detections)
+    assert result.matched_detection.tolist() == [0, 1, 2]
+    capped = build_windows(detections, 3, WindowAssociationParams(small_U_exhaustive_max=5))
+    assert capped.rule == "all_detections" and capped.members.all()
+
+
+def test_no_detections_keeps_the_predictions() -> None:
+    predicted = np.array([[1.0, 2.0], [3.0, 4.0], [5.0, 1.0], [0.0, 7.0]])
+    result = associate_window(predicted, np.zeros((0, 2)))
+    assert result.diagnostics.fallback == FALLBACK_NO_DETECTIONS
+    np.testing.assert_array_equal(result.positions, predicted)
+    assert result.matched_detection.tolist() == [-1] * 4
+
+
+def test_select_candidate_breaks_ties_towards_the_first() -> None:
+    def make(cost: float) -> WindowAssociationResult:
+        empty = np.zeros(0, dtype=np.int64)
+        return WindowAssociationResult(np.zeros((0, 2)), empty, cost, 0.0, 0, 0.0, empty)
+
+    assert select_candidate([make(1.0), make(0.5), make(0.5)]) == 1
+    assert select_candidate([make(0.2), make(0.2)]) == 0
+    with pytest.raises(ValueError, match="no candidates"):
+        select_candidate([])
