@@ -28,7 +28,7 @@ def demo_path() -> Path:
     """The demo video folder, rendered on first use (a few seconds)."""
     from trackfw_plugins.datasets.synth import generate_demo
 
-    target = cache_root() / f"demo-v{DEMO_VERSION}"
+    target = cache_root() / f"demo-v{DEMO_VERSION}" / "demo"
     if (target / "meta.json").is_file():
         return target
     target.parent.mkdir(parents=True, exist_ok=True)
