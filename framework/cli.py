@@ -208,7 +208,10 @@ def main(argv: list[str] | None = None) -> int:
     _state["registry"] = None  # plugins are discovered afresh for every invocation
     try:
         app = build_app()
-        app(args=arguments, prog_name="trackfw", standalone_mode=False)
+        # Without standalone mode click returns a command's typer.Exit code instead of exiting.
+        result = app(args=arguments, prog_name="trackfw", standalone_mode=False)
+        if isinstance(result, int):
+            return result
     except UserError as error:
         for line in error.lines:
             error_console.print(f"error: {line}", markup=False, highlight=False, soft_wrap=True)

@@ -160,7 +160,10 @@ def _fast_table(path: Path, columns: Sequence[str], n_frames: int | None) -> np.
             header = [name.strip() for name in stream.readline().split(",")]
             if header != list(columns):
                 return None
-            table = np.loadtxt(stream, delimiter=",", ndmin=2, dtype=np.float64)
+            rows = stream.read()
+        if not rows.strip():
+            return np.zeros((0, len(columns)))
+        table = np.loadtxt(io.StringIO(rows), delimiter=",", ndmin=2, dtype=np.float64)
     except (ValueError, UnicodeDecodeError):
         return None
     if table.size == 0:
@@ -209,11 +212,13 @@ def read_heads(path: Path, n_frames: int | None = None) -> dict[int, np.ndarray]
     """heads.csv as ``{0-based frame: (M, 3) array of x, y, head_size}``."""
     table = _fast_table(path, ("frame", "id", "x", "y", "head_size"), n_frames)
     if table is not None:
+        if len(table) == 0:
+            return {}
         frames = table[:, 0].astype(np.int64) - 1
         order = np.argsort(frames, kind="stable")
         frames, rows = frames[order], table[order][:, 2:5]
-        starts = np.flatnonzero(np.r_[True, frames[1:] != frames[:-1]]) if len(frames) else []
-        ends = [*list(starts[1:]), len(frames)]
+        starts: list[int] = np.flatnonzero(np.r_[True, frames[1:] != frames[:-1]]).tolist()
+        ends = [*starts[1:], len(frames)]
         return {int(frames[s]): rows[s:e].copy() for s, e in zip(starts, ends, strict=True)}
     grouped: dict[int, list[tuple[float, float, float]]] = {}
     for line, row in _read_csv(path, ("frame", "id", "x", "y", "head_size")):

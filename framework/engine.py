@@ -28,6 +28,7 @@ from trackfw.records import (
     VideoContext,
 )
 from trackfw.registry import Registry
+from trackfw.stage_cache import CACHED_KINDS, StageCache, StageReplay
 from trackfw.stages import STAGE_KINDS, Classifier, Detector, GapMatcher, Stage, Tracker
 from trackfw.video_io import iter_frames
 
@@ -147,8 +148,20 @@ class Engine:
         self.pipeline = pipeline
         self.registry = registry
 
-    def run_video(self, video: VideoContext, progress: ProgressCallback | None = None) -> VideoRun:
+    def run_video(
+        self,
+        video: VideoContext,
+        progress: ProgressCallback | None = None,
+        cache: StageCache | None = None,
+    ) -> VideoRun:
         """Track the targets through one video.
+
+        Args:
+            video: the video to track through.
+            progress: called with each frame index before the frame is processed.
+            cache: a stage cache. On a hit the detector and the classifier are not called: their
+                recorded detections, decisions and milliseconds are replayed. On a miss they are
+                recorded once the video is done.
 
         Raises:
             UserError: the video lacks what a stage needs (ground truth for oracle stages, an
@@ -156,7 +169,17 @@ class Engine:
         """
         stages = self.pipeline.build(self.registry)
         _check_ground_truth(stages, video)
-        for stage in stages.values():
+        replay: StageReplay | None = None
+        cache_key = ""
+        if cache is not None:
+            cache_key = cache.key(self.pipeline, video, self.registry)
+            replay = cache.load(cache_key, video.n_frames, video.name)
+        live = (
+            stages
+            if replay is None
+            else {kind: stage for kind, stage in stages.items() if kind not in CACHED_KINDS}
+        )
+        for stage in live.values():
             for candidate in (stage, *stage.nested_stages.values()):
                 candidate.start(video)
         detector = stages["detector"]
@@ -165,7 +188,7 @@ class Engine:
         gap_matcher = stages["gap_matcher"]
         assert isinstance(detector, Detector) and isinstance(classifier, Classifier)
         assert isinstance(tracker, Tracker) and isinstance(gap_matcher, GapMatcher)
-        decode = stages_need_pixels(stages)
+        decode = stages_need_pixels(live)
         width, height = video.width, video.height
         clock = time.perf_counter
 
@@ -178,31 +201,42 @@ class Engine:
         initialised_from = ""
         last_normal_t: int | None = None
         last_normal_image: np.ndarray | None = None
+        last_normal_detections: Detections | None = None
         interval_open = False
         started = clock()
 
         for t, image, status in iter_frames(video, decode=decode):
             if progress is not None:
                 progress(t)
+            if replay is not None and status == "ok":
+                status = replay.status_of(t)
             if status != "ok":
                 frames.append(FrameRecord(t, status))
                 continue
             frame = FrameData(t, image, video)
             record = FrameRecord(t, "ok")
-            tick = clock()
-            detections = detector.detect(frame)
-            # The stable index is the position in the detector's own output.
-            if not np.array_equal(detections.index, np.arange(len(detections))):
-                detections = Detections(detections.points, detections.scores, detections.boxes)
-            tock = clock()
-            record.milliseconds["detector"] = (tock - tick) * 1e3
-            decision = classifier.classify(frame, detections)
-            tick = clock()
-            record.milliseconds["classifier"] = (tick - tock) * 1e3
+            if replay is None:
+                tick = clock()
+                detections = detector.detect(frame)
+                # The stable index is the position in the detector's own output.
+                if not np.array_equal(detections.index, np.arange(len(detections))):
+                    detections = Detections(detections.points, detections.scores, detections.boxes)
+                tock = clock()
+                record.milliseconds["detector"] = (tock - tick) * 1e3
+                decision = classifier.classify(frame, detections)
+                tick = clock()
+                record.milliseconds["classifier"] = (tick - tock) * 1e3
+                probability, said_infoless = float(decision.probability), bool(decision.infoless)
+            else:
+                detections, probability, said_infoless, detector_ms, classifier_ms = replay.frame(t)
+                record.milliseconds["detector"] = detector_ms
+                record.milliseconds["classifier"] = classifier_ms
+                tick = clock()
             first = last_normal_t is None
-            infoless = bool(decision.infoless) and not first
-            classifier.feedback(t, infoless)
-            record.probability = float(decision.probability)
+            infoless = said_infoless and not first
+            if replay is None:
+                classifier.feedback(t, infoless)
+            record.probability = probability
             record.infoless = infoless
             record.detections = detections
             frames.append(record)
@@ -226,6 +260,7 @@ class Engine:
                     states=tracker.states(),
                     detections=detections,
                     frame_a=last_normal_image,
+                    detections_a=last_normal_detections,
                     frame_b=image,
                     video=video,
                 )
@@ -260,6 +295,7 @@ class Engine:
             segment.append(positions)
             reported.append((t, positions))
             last_normal_t = t
+            last_normal_detections = detections
             if decode:
                 last_normal_image = image
 
@@ -274,6 +310,9 @@ class Engine:
             )
         if last_normal_t is None:
             raise UserError(f"{video.path}: no frame could be read; nothing to track.")
+        seconds = clock() - started
+        if cache is not None and replay is None:
+            cache.store(cache_key, frames, video.name)
         return VideoRun(
             video=video,
             target_ids=[int(i) for i in target_ids],
@@ -281,7 +320,7 @@ class Engine:
             frames=frames,
             gaps=gaps,
             initialised_from=initialised_from,
-            seconds=clock() - started,
+            seconds=seconds,
         )
 
 

@@ -54,3 +54,15 @@ def trackfw_register_commands(app: Any) -> None:
     (``app.add_typer(group, name="dataset")``). Keep imports inside the command functions so that
     ``trackfw --help`` stays fast.
     """
+
+
+@hookspec
+def trackfw_register_executors(registry: Registry) -> None:
+    """Register executors that run the jobs of ``trackfw bench`` (``--executor NAME``).
+
+    Call ``registry.add_executor(name, cls_or_factory)``. ``cls_or_factory(options)`` receives a
+    :class:`trackfw.bench.executor.ExecutorOptions` and returns an object with a
+    ``run(jobs, on_result)`` method (:class:`trackfw.bench.executor.Executor`): it runs every
+    :class:`trackfw.bench.jobs.Job` through :func:`trackfw.bench.jobs.run_job`, wherever it likes,
+    and calls ``on_result`` with each :class:`trackfw.bench.jobs.JobResult` as it arrives.
+    """

@@ -220,6 +220,7 @@ class GapProblem:
         frame_a: pixels of frame ``a`` or None when no stage needs pixels.
         frame_b: pixels of frame ``b`` or None.
         video: the video.
+        detections_a: detections on frame ``a`` (head sizes at ``a``, appearance), if known.
     """
 
     interval: Interval
@@ -230,6 +231,7 @@ class GapProblem:
     frame_a: NDArray[np.uint8] | None
     frame_b: NDArray[np.uint8] | None
     video: VideoContext
+    detections_a: Detections | None = None
 
     @property
     def horizon(self) -> int:

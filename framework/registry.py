@@ -60,6 +60,15 @@ class InputEntry:
 
 
 @dataclass(frozen=True)
+class ExecutorEntry:
+    """A registered executor for ``trackfw bench --executor NAME``."""
+
+    name: str
+    factory: Callable[..., Any]
+    source: PluginSource
+
+
+@dataclass(frozen=True)
 class PluginFailure:
     """A plugin that could not be loaded or registered something invalid."""
 
@@ -72,11 +81,13 @@ class Registry:
     """Every stage class and named input known to trackfw.
 
     Plugins receive the registry in their ``trackfw_register_stages`` hook and call
-    ``add_detector``, ``add_classifier``, ``add_tracker``, ``add_gap_matcher``, ``add_predictor``.
+    ``add_detector``, ``add_classifier``, ``add_tracker``, ``add_gap_matcher``, ``add_predictor``;
+    in ``trackfw_register_executors`` they call ``add_executor``.
     """
 
     stages: dict[tuple[str, str], StageEntry] = field(default_factory=dict)
     inputs: dict[str, InputEntry] = field(default_factory=dict)
+    executors: dict[str, ExecutorEntry] = field(default_factory=dict)
     failures: list[PluginFailure] = field(default_factory=list)
     plugin_manager: pluggy.PluginManager | None = None
     #: pluggy plugin name -> where it came from, for every plugin that loaded.
@@ -115,6 +126,22 @@ class Registry:
             )
         self.inputs[name] = InputEntry(name, factory, description, self._current)
 
+    def add_executor(self, name: str, cls_or_factory: Callable[..., Any]) -> None:
+        """Register an executor for ``trackfw bench --executor NAME``.
+
+        ``cls_or_factory(options)`` gets a :class:`trackfw.bench.executor.ExecutorOptions` and
+        returns an object with ``run(jobs, on_result)``.
+        """
+        if not isinstance(name, str) or not name.strip() or not callable(cls_or_factory):
+            raise PluginError(
+                f"add_executor needs a name and a class or callable factory, got {name!r}"
+            )
+        if name in self.executors and self.executors[name].factory is not cls_or_factory:
+            raise PluginError(
+                f"executor {name!r} is already registered by {self.executors[name].source.package}"
+            )
+        self.executors[name] = ExecutorEntry(name, cls_or_factory, self._current)
+
     def _add(self, kind: str, cls: Any) -> None:
         base = STAGE_BASES[kind]
         if not isinstance(cls, type) or not issubclass(cls, base):
@@ -151,6 +178,13 @@ class Registry:
             return self.stages[(kind, name)]
         except KeyError:
             raise KeyError(unknown_name_message(kind, name, self.names(kind))) from None
+
+    def get_executor(self, name: str) -> ExecutorEntry:
+        """The executor registered as ``name``; KeyError with close matches otherwise."""
+        try:
+            return self.executors[name]
+        except KeyError:
+            raise KeyError(unknown_name_message("executor", name, sorted(self.executors))) from None
 
     def build_stage(self, kind: str, spec: Mapping[str, Any]) -> Stage:
         """Build a stage from ``{"type": name, "params": {...}}`` (nested stages inline).
@@ -255,7 +289,11 @@ def load_registry(
             continue
         sources[plugin_name] = source
 
-    for hook_name in ("trackfw_register_stages", "trackfw_register_inputs"):
+    for hook_name in (
+        "trackfw_register_stages",
+        "trackfw_register_inputs",
+        "trackfw_register_executors",
+    ):
         _call_each(manager, hook_name, registry, sources)
     return registry
 
@@ -273,13 +311,13 @@ def _call_each(
         if source is None:
             continue
         registry._current = source
-        snapshot = (dict(registry.stages), dict(registry.inputs))
+        snapshot = (dict(registry.stages), dict(registry.inputs), dict(registry.executors))
         try:
             implementation.function(registry=registry)
         except Exception as error:
             # Roll back whatever this plugin registered before it failed: half a plugin is worse
             # than none.
-            registry.stages, registry.inputs = snapshot
+            registry.stages, registry.inputs, registry.executors = snapshot
             detail = _one_line(error)
             if not isinstance(error, PluginError):
                 frame = traceback.extract_tb(error.__traceback__)[-1]
@@ -319,6 +357,7 @@ def params_schema(params_model: type[BaseModel]) -> list[tuple[str, str, str, st
 
 __all__ = [
     "ENTRY_POINT_GROUP",
+    "ExecutorEntry",
     "InputEntry",
     "PluginFailure",
     "PluginSource",

@@ -80,7 +80,7 @@ def train_classifier(
         raise UserError(f"--replay-rounds {replay_rounds}: expected at least 1.")
     if flow_width < 16 or not c_max > 0:
         raise UserError("--flow-width must be at least 16 and --c-max positive.")
-    settings = FeatureSettings(flow, flow_width, dis_preset, c_max)
+    settings = FeatureSettings(flow, flow_width, dis_preset, c_max)  # type: ignore[arg-type]  # checked above
     spec = {
         "type": detector,
         "params": parse_assignments(detector_params or [], "--detector-param"),
@@ -95,7 +95,7 @@ def train_classifier(
         settings,
         grid=grid,
         seed=seed,
-        reference=reference,
+        reference=reference,  # type: ignore[arg-type]  # checked above
         replay_rounds=replay_rounds,
         log=echo,
     )

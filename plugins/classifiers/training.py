@@ -379,7 +379,7 @@ def fit_model(
     if folds < 2:
         # One video: no held-out values; the sigmoid is then fitted in-sample (optimistic).
         out_of_fold = final.decision_function(features)
-    platt = fit_platt(out_of_fold, labels)
+    platt = fit_platt(out_of_fold, labels.astype(np.float64))
     model = SvmModel.from_sklearn(
         final.named_steps["scaler"],
         final.named_steps["svc"],

@@ -11,14 +11,19 @@ appearance term and the records.
 from __future__ import annotations
 
 from dataclasses import asdict
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field
 
-from trackfw.records import NO_MATCH, FloatArray, GapProblem, GapSolution
+from trackfw.records import NO_MATCH, Detections, FloatArray, GapProblem, GapSolution, IntArray
 from trackfw.stages import GapMatcher, StageParams
-from trackfw_plugins.maths.appearance import appearance_descriptors, appearance_distance_matrix
+from trackfw_plugins.maths.appearance import (
+    appearance_descriptors,
+    appearance_distance_matrix,
+    patch_descriptor,
+)
+from trackfw_plugins.maths.reid_crop import crop_box
 from trackfw_plugins.maths.tps_rpm import TpsRpmSettings
 from trackfw_plugins.maths.window_association import (
     WindowAssociationParams,
@@ -44,19 +49,60 @@ class WindowTpsRpmParams(StageParams, WindowAssociationParams):
         gt=0,
         description="side of the appearance patches at 1080p (paper: 80), scaled by height/1080",
     )
+    appearance_region: Literal["patch", "body"] = Field(
+        "patch",
+        description="'patch' = square centred on the head (paper); 'body' = the 1.5s x 4s box below a head of "
+        "detected size s, resized to 80x80 (ours: clothing tells people apart when heads are small)",
+    )
 
 
-def appearance_matrix(problem: GapProblem, patch_at_1080: float) -> FloatArray | None:
+def _head_sizes(
+    detections: Detections | None, rows: IntArray | None, count: int, fallback: float
+) -> FloatArray:
+    """Head size per point from detection boxes (the median box where a point has none)."""
+    if detections is None or detections.boxes is None or len(detections) == 0:
+        return np.full(count, fallback)
+    sides = detections.boxes[:, 2:4].mean(axis=1)
+    median = float(np.median(sides))
+    if rows is None:
+        return sides.copy()
+    return np.array(
+        [sides[row] if 0 <= row < len(sides) else median for row in rows], dtype=np.float64
+    )
+
+
+def _body_descriptors(image: np.ndarray, points: FloatArray, sizes: FloatArray) -> FloatArray:
+    patches = [
+        crop_box(image, x - 0.75 * s, y - 0.5 * s, 1.5 * s, 4.0 * s, (80, 80))
+        for (x, y), s in zip(points, sizes, strict=True)
+    ]
+    return np.array([patch_descriptor(patch) for patch in patches]).reshape(len(patches), -1)
+
+
+def appearance_matrix(problem: GapProblem, params: WindowTpsRpmParams) -> FloatArray | None:
     """``(K, N)`` appearance distances between targets at frame a and detections at frame b."""
     if problem.frame_a is None or problem.frame_b is None:
         return None
     scale = problem.video.height / 1080.0
-    targets = appearance_descriptors(
-        problem.frame_a, problem.positions_at_a, scale=scale * patch_at_1080 / 80.0
-    )
-    detections = appearance_descriptors(
-        problem.frame_b, problem.detections.points, scale=scale * patch_at_1080 / 80.0
-    )
+    if params.appearance_region == "body":
+        fallback = params.patch_at_1080 * scale / 2
+        detections_a = problem.detections_a
+        rows_a = None
+        if detections_a is not None:
+            position = {int(index): row for row, index in enumerate(detections_a.index)}
+            rows_a = np.array(
+                [position.get(state.matched_detection, -1) for state in problem.states]
+            )
+        sizes_a = _head_sizes(detections_a, rows_a, len(problem.states), fallback)
+        sizes_b = _head_sizes(problem.detections, None, len(problem.detections), fallback)
+        targets = _body_descriptors(problem.frame_a, problem.positions_at_a, sizes_a)
+        detections = _body_descriptors(problem.frame_b, problem.detections.points, sizes_b)
+    else:
+        factor = scale * params.patch_at_1080 / 80.0
+        targets = appearance_descriptors(problem.frame_a, problem.positions_at_a, scale=factor)
+        detections = appearance_descriptors(
+            problem.frame_b, problem.detections.points, scale=factor
+        )
     return appearance_distance_matrix(targets, detections)
 
 
@@ -82,9 +128,7 @@ class WindowTpsRpmGapMatcher(GapMatcher):
         candidates = list(self.predictor.predict(problem))
         detections = problem.detections
         appearance = (
-            appearance_matrix(problem, params.patch_at_1080)
-            if params.lambda2 > 0 and len(detections)
-            else None
+            appearance_matrix(problem, params) if params.lambda2 > 0 and len(detections) else None
         )
         association = WindowAssociationParams(
             **{name: getattr(params, name) for name in WindowAssociationParams.model_fields}

@@ -61,6 +61,15 @@ class ArPredictor(Predictor):
             description="Relative ridge on the AR coefficients: trace(X'X)/(k+1) times this.",
         )
 
+        relative_motion: float = Field(
+            default=1.0,
+            ge=0.0,
+            le=1.0,
+            description="Weight of each target's own forecast motion relative to the group's mean motion: "
+            "1 = independent per-target AR (paper); 0 = the group moves rigidly by its mean AR displacement "
+            "(ours: long horizons amplify per-target velocity noise into pattern distortion).",
+        )
+
         @field_validator("orders")
         @classmethod
         def _check_orders(cls, orders: list[int]) -> list[int]:
@@ -124,6 +133,11 @@ class ArPredictor(Predictor):
                 fallbacks[target_id] = (
                     forecast.fallback if forecast.fallback is not None else forecast.order_used
                 )
+            if self.params.relative_motion < 1.0 and len(target_ids):
+                start = problem.positions_at_a
+                displacement = positions - start
+                mean = displacement.mean(axis=0)
+                positions = start + mean + self.params.relative_motion * (displacement - mean)
             predictions.append(
                 Prediction(
                     label=f"ar{order}", positions=positions, diagnostics={"fallbacks": fallbacks}

@@ -276,3 +276,11 @@ def test_init_from_detections_without_gt(tmp_path: Path, pipeline_file, points_v
     text = pipeline_file().read_text() + "engine: {init: detections}\n"
     run, _ = _run(video, pipeline_file(text, "det.yaml"))
     assert run.initialised_from == "detections" and len(run.target_ids) == 14
+
+
+def test_ground_truth_files_without_rows(tmp_path: Path) -> None:
+    from trackfw.dataset import read_heads, read_targets
+
+    (tmp_path / "heads.csv").write_text("frame,id,x,y,head_size\n")
+    (tmp_path / "gt.csv").write_text("frame,id,x,y\n")
+    assert read_heads(tmp_path / "heads.csv") == {} and read_targets(tmp_path / "gt.csv") == {}

@@ -67,3 +67,34 @@ def test_max_history_parameter_reaches_the_forecast() -> None:
     (on_full,) = full.predict(_problem([history], a=100, b=110))
     np.testing.assert_array_equal(on_capped.positions, on_truncated.positions)
     assert np.abs(on_full.positions - on_capped.positions).max() > 1e-3
+
+
+def test_relative_motion_zero_moves_the_group_rigidly() -> None:
+    from trackfw.records import Detections, GapProblem, Interval, TargetState, VideoContext
+    from trackfw_plugins.predictors.ar import ArPredictor
+
+    steps = np.arange(30)[:, None]
+    histories = [
+        np.hstack([10 + 2.0 * steps, 50 + 0 * steps]),
+        np.hstack([100 + 0.5 * steps, 80 + 1.0 * steps]),
+    ]
+    problem = GapProblem(
+        interval=Interval(29, 59),
+        target_ids=np.array([1, 2]),
+        histories=histories,
+        states=[TargetState(i + 1, h[-1]) for i, h in enumerate(histories)],
+        detections=Detections.empty(),
+        frame_a=None,
+        frame_b=None,
+        video=VideoContext("v", "v", 100, 640, 480),
+    )
+    independent = ArPredictor(ArPredictor.Params(orders=[1])).predict(problem)[0].positions
+    rigid = (
+        ArPredictor(ArPredictor.Params(orders=[1], relative_motion=0.0))
+        .predict(problem)[0]
+        .positions
+    )
+    at_a = np.array([h[-1] for h in histories])
+    assert np.allclose(independent, at_a + 30 * np.array([[2.0, 0.0], [0.5, 1.0]]), atol=1e-3)
+    assert np.allclose(rigid - at_a, (independent - at_a).mean(axis=0), atol=1e-9)
+    assert np.allclose(rigid[1] - rigid[0], at_a[1] - at_a[0])

@@ -1,0 +1,150 @@
+"""The ``trackfw bench`` command: every (pipeline, video) job, evaluated, as one table."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``bench`` to the root ``trackfw`` application."""
+    app.command(name="bench")(bench_command)
+
+
+def bench_command(
+    pipelines: Annotated[
+        list[Path], typer.Argument(help="Pipeline YAML files, one table row each.")
+    ],
+    dataset: Annotated[
+        Path, typer.Option("--dataset", "-d", help="Dataset folder (one sub-folder per video).")
+    ],
+    jobs: Annotated[
+        int, typer.Option("--jobs", "-j", min=1, help="Jobs at once (worker processes).")
+    ] = 1,
+    executor: Annotated[
+        str, typer.Option("--executor", help="Where jobs run: local, dask, or a plugin's.")
+    ] = "local",
+    address: Annotated[
+        str | None,
+        typer.Option("--address", help="Scheduler address for --executor dask (tcp://host:8786)."),
+    ] = None,
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Output folder (runs, cache, tables).")
+    ] = Path("bench"),
+    no_cache: Annotated[
+        bool, typer.Option("--no-cache", help="Do not read or write the stage cache.")
+    ] = False,
+    cache_dir: Annotated[
+        Path | None,
+        typer.Option("--cache-dir", help="Stage cache folder (default: OUT/cache)."),
+    ] = None,
+    timeout: Annotated[
+        float | None,
+        typer.Option("--timeout", help="Time limit per job in seconds; a job past it fails."),
+    ] = None,
+    overrides: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--set",
+            help="Override a value in every pipeline (PATH=VALUE) or in one (NAME:PATH=VALUE).",
+        ),
+    ] = None,
+    dist: Annotated[
+        float, typer.Option("--dist", help="CLEAR MOT / IDF1 match threshold in pixels.")
+    ] = 40.0,
+    retries: Annotated[
+        int, typer.Option("--retries", min=0, help="Retries of a job whose worker was lost.")
+    ] = 1,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+) -> None:
+    """Run pipelines over a dataset and write the benchmark table (Markdown, CSV, PNG).
+
+    Finished jobs are skipped on a rerun; failed ones go to OUT/failures.json (exit code 2).
+    """
+    from rich.console import Console
+
+    from trackfw.bench.executor import ExecutorOptions, make_executor
+    from trackfw.bench.report import build_table, markdown_table, write_table
+    from trackfw.bench.sweep import plan_sweep
+    from trackfw.cli import get_registry
+    from trackfw.errors import UserError
+
+    error_console = Console(stderr=True)
+    registry = get_registry()
+    plan = plan_sweep(
+        registry,
+        pipelines,
+        dataset,
+        out,
+        overrides or [],
+        cache_dir=cache_dir,
+        use_cache=not no_cache,
+        timeout_s=timeout,
+    )
+    runner = make_executor(
+        registry,
+        executor,
+        ExecutorOptions(jobs=jobs, address=address, retries=retries, registry=registry),
+    )
+    sweep = _run_with_progress(plan, runner, executor, quiet, error_console)
+    rows = build_table(plan, distance_px=dist)
+    paths = write_table(rows, out, distance_px=dist)
+    typer.echo(markdown_table(rows, distance_px=dist), nl=False)
+    error_console.print(
+        f"{sweep.count('done')} run, {sweep.count('skipped')} already done,"
+        f" {sweep.count('failed')} failed in {sweep.seconds:.1f} s;"
+        f" wrote {paths['markdown']}, {paths['csv']}, {paths['png']}",
+        highlight=False,
+        soft_wrap=True,
+    )
+    if sweep.failures:
+        error_console.print(
+            f"[red]{len(sweep.failures)} job(s) failed[/red]; see {out / 'failures.json'}"
+        )
+        for failure in sweep.failures[:5]:
+            error_console.print(
+                f"  {failure.pipeline} / {failure.video}: {failure.error_type}:"
+                f" {failure.error_message}",
+                markup=False,
+                highlight=False,
+            )
+        # trackfw.cli.main turns a UserError into exit code 2 (it does not pass typer.Exit codes on).
+        raise UserError(
+            f"{len(sweep.failures)} of {len(sweep.results)} jobs failed; see"
+            f" {out / 'failures.json'} (the table covers the completed jobs)."
+        )
+
+
+def _run_with_progress(
+    plan: Any, runner: Any, executor_name: str, quiet: bool, console: Any
+) -> Any:
+    from trackfw.bench.sweep import run_sweep
+
+    if quiet:
+        return run_sweep(plan, runner, executor_name=executor_name)
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("jobs"),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+    ) as progress:
+        task = progress.add_task("bench", total=len(plan.jobs))
+
+        def advance(result: Any) -> None:
+            progress.update(
+                task,
+                advance=1,
+                description=f"{result.pipeline}/{result.video} {result.status}",
+            )
+
+        return run_sweep(plan, runner, on_result=advance, executor_name=executor_name)
+
+
+__all__ = ["bench_command", "register"]

@@ -1,0 +1,46 @@
+"""Executors for ``trackfw bench``: ``local`` (a process pool) and ``dask`` (Dask distributed).
+
+Also adds the ``trackfw bench`` command. The executor classes are imported only when one is
+built, so loading the plugin stays cheap (and ``dask`` is needed only when it is used).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from trackfw.hookspecs import hookimpl
+
+if TYPE_CHECKING:
+    from trackfw.bench.executor import ExecutorOptions
+    from trackfw.registry import Registry
+
+TRACKFW_PLUGIN_API = 1
+
+
+def local_executor(options: ExecutorOptions) -> Any:
+    """The ``local`` executor: in this process for one job at a time, else a process pool."""
+    from trackfw_plugins.executors.local import LocalExecutor
+
+    return LocalExecutor(options)
+
+
+def dask_executor(options: ExecutorOptions) -> Any:
+    """The ``dask`` executor: a LocalCluster, or the scheduler at ``--address``."""
+    from trackfw_plugins.executors.dask import DaskExecutor
+
+    return DaskExecutor(options)
+
+
+@hookimpl
+def trackfw_register_executors(registry: Registry) -> None:
+    """Register ``local`` and ``dask``."""
+    registry.add_executor("local", local_executor)
+    registry.add_executor("dask", dask_executor)
+
+
+@hookimpl
+def trackfw_register_commands(app: Any) -> None:
+    """Add ``trackfw bench``."""
+    from trackfw.bench.cli import register
+
+    register(app)

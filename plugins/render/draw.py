@@ -1,0 +1,285 @@
+"""Read a run folder and draw its tracks: points, boxes, identity colours, trails, intervals.
+
+Everything here works on one video's run folder (tracks.txt, frames.csv, gaps.json,
+summary.json; DESIGN.md section 6). Frames on disk are 1-based; in memory 0-based.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import csv
+import io
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from trackfw.errors import UserError
+
+Image = NDArray[np.uint8]
+Point = tuple[float, float]
+
+TEXT_FONT = cv2.FONT_HERSHEY_SIMPLEX
+INFOLESS_COLOUR = (40, 40, 220)  # BGR red
+CANVAS_GREY = 48
+
+
+@dataclass
+class Gap:
+    """One resolved interval crossing: last normal frame ``a``, first normal frame ``b`` (0-based).
+
+    Attributes:
+        a, b: frame indices.
+        positions_b: target id -> ``(x, y)`` where the gap matcher placed it on frame ``b``.
+        chosen: the gap matcher's chosen candidate (e.g. ``ar2``), or None.
+    """
+
+    a: int
+    b: int
+    positions_b: dict[int, Point]
+    chosen: str | None = None
+
+
+@dataclass
+class RunData:
+    """What the renderer needs from one video's run folder.
+
+    Attributes:
+        run_dir: the folder.
+        video_name: the video's name.
+        video_path: the dataset video it ran on (summary.json), or None.
+        pipeline: the pipeline's name.
+        n_frames: frames in the video.
+        box_size: side of the square box around each point (the pipeline's ``engine.box_size``).
+        tracks: 0-based frame -> ``{target id: (x, y)}``.
+        infoless: 0-based frames the run judged info-less.
+        unread: 0-based frames that could not be read.
+        gaps: resolved interval crossings, in order.
+    """
+
+    run_dir: Path
+    video_name: str
+    video_path: str | None
+    pipeline: str
+    n_frames: int
+    box_size: float
+    tracks: dict[int, dict[int, Point]] = field(default_factory=dict)
+    infoless: set[int] = field(default_factory=set)
+    unread: set[int] = field(default_factory=set)
+    gaps: list[Gap] = field(default_factory=list)
+
+
+def _read_json(path: Path) -> Any:
+    if not path.is_file():
+        raise UserError(f"{path}: missing; expected a complete run folder (trackfw run writes it).")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (ValueError, UnicodeDecodeError) as error:
+        raise UserError(f"{path}: not valid JSON ({error}).") from None
+
+
+def _read_tracks(path: Path) -> dict[int, dict[int, Point]]:
+    """tracks.txt (MOTChallenge rows) as frame -> id -> box centre."""
+    tracks: dict[int, dict[int, Point]] = {}
+    if not path.is_file():
+        raise UserError(f"{path}: missing; expected the run's tracks.")
+    for line_number, values in enumerate(csv.reader(io.StringIO(path.read_text())), start=1):
+        if not values:
+            continue
+        try:
+            frame, target = int(float(values[0])), int(float(values[1]))
+            left, top, width, height = (float(value) for value in values[2:6])
+        except (ValueError, IndexError):
+            raise UserError(
+                f"{path}: line {line_number}: expected frame,id,left,top,width,height,..."
+            ) from None
+        tracks.setdefault(frame - 1, {})[target] = (left + width / 2, top + height / 2)
+    return tracks
+
+
+def _read_frames(path: Path) -> tuple[set[int], set[int]]:
+    """The info-less and the unread frames of frames.csv (0-based)."""
+    infoless: set[int] = set()
+    unread: set[int] = set()
+    if not path.is_file():
+        return infoless, unread
+    reader = csv.DictReader(io.StringIO(path.read_text()))
+    for line_number, row in enumerate(reader, start=2):
+        try:
+            t = int(row["frame"]) - 1
+        except (KeyError, ValueError, TypeError):
+            raise UserError(f"{path}: line {line_number}: frame: expected an integer.") from None
+        if row.get("status", "ok") != "ok":
+            unread.add(t)
+        elif row.get("infoless") == "1":
+            infoless.add(t)
+    return infoless, unread
+
+
+def load_run_data(run_dir: Path) -> RunData:
+    """Read one video's run folder.
+
+    Raises:
+        UserError: a missing or malformed file, named with the problem.
+    """
+    run_dir = Path(run_dir)
+    summary = _read_json(run_dir / "summary.json")
+    if not isinstance(summary, dict):
+        raise UserError(f"{run_dir / 'summary.json'}: expected a JSON object.")
+    config = summary.get("config") or {}
+    box_size = float((config.get("engine") or {}).get("box_size", 80.0))
+    data = RunData(
+        run_dir=run_dir,
+        video_name=str(summary.get("video", run_dir.name)),
+        video_path=summary.get("video_path"),
+        pipeline=str(summary.get("pipeline", "")),
+        n_frames=int(summary.get("n_frames", 0)),
+        box_size=box_size,
+    )
+    data.tracks = _read_tracks(run_dir / "tracks.txt")
+    data.infoless, data.unread = _read_frames(run_dir / "frames.csv")
+    gaps = _read_json(run_dir / "gaps.json") if (run_dir / "gaps.json").is_file() else []
+    for entry in gaps if isinstance(gaps, list) else []:
+        if not isinstance(entry, dict) or not entry.get("resolved") or entry.get("b") is None:
+            continue
+        positions = {
+            int(target): (float(point[0]), float(point[1]))
+            for target, point in (entry.get("positions") or {}).items()
+        }
+        data.gaps.append(
+            Gap(int(entry["a"]) - 1, int(entry["b"]) - 1, positions, entry.get("chosen"))
+        )
+    return data
+
+
+def identity_colour(target_id: int) -> tuple[int, int, int]:
+    """A distinct, stable BGR colour per identity (hues spaced by the golden ratio).
+
+    >>> identity_colour(1) == identity_colour(1), identity_colour(1) != identity_colour(2)
+    (True, True)
+    """
+    hue = (target_id * 0.618033988749895) % 1.0
+    red, green, blue = colorsys.hsv_to_rgb(hue, 0.85, 1.0)
+    return int(blue * 255), int(green * 255), int(red * 255)
+
+
+def blank_frame(width: int, height: int) -> Image:
+    """A grey canvas for videos without frames (point-only videos)."""
+    return np.full((height, width, 3), CANVAS_GREY, dtype=np.uint8)
+
+
+def _label(image: Image, text: str, origin: tuple[int, int], scale: float = 0.6) -> None:
+    """White text on a dark outline, readable on any background."""
+    cv2.putText(image, text, origin, TEXT_FONT, scale, (0, 0, 0), 4, cv2.LINE_AA)
+    cv2.putText(image, text, origin, TEXT_FONT, scale, (255, 255, 255), 1, cv2.LINE_AA)
+
+
+def _segment_start(data: RunData, t: int) -> int:
+    """The first frame of the segment holding ``t`` (trails never cross an interval)."""
+    start = 0
+    for gap in data.gaps:
+        if gap.b <= t:
+            start = max(start, gap.b)
+    return start
+
+
+def draw_frame(image: Image, t: int, data: RunData, trail: int = 15) -> Image:
+    """Draw frame ``t``: boxes, points, ids, trails; info-less and unread frames are marked.
+
+    Args:
+        image: ``(H, W, 3)`` uint8 BGR; drawn on a copy.
+        t: 0-based frame index.
+        data: the run.
+        trail: frames of trail behind each point.
+    """
+    canvas = image.copy()
+    height, width = canvas.shape[:2]
+    scale = max(0.5, height / 900)
+    if t in data.infoless or t in data.unread:
+        canvas = (canvas * 0.45).astype(np.uint8)
+        cv2.rectangle(
+            canvas, (0, 0), (width - 1, height - 1), INFOLESS_COLOUR, max(6, height // 60)
+        )
+        text = "INFO-LESS" if t in data.infoless else "UNREADABLE"
+        _label(canvas, text, (width // 2 - int(80 * scale), height // 2), 1.2 * scale)
+    start = max(_segment_start(data, t), t - trail)
+    half = data.box_size / 2
+    for target, (x, y) in sorted(data.tracks.get(t, {}).items()):
+        colour = identity_colour(target)
+        history = [
+            data.tracks[s][target]
+            for s in range(start, t + 1)
+            if s in data.tracks and target in data.tracks[s]
+        ]
+        if len(history) > 1:
+            points = np.round(np.asarray(history)).astype(np.int32).reshape(-1, 1, 2)
+            cv2.polylines(canvas, [points], False, colour, 2, cv2.LINE_AA)
+        top_left = (round(x - half), round(y - half))
+        bottom_right = (round(x + half), round(y + half))
+        cv2.rectangle(canvas, top_left, bottom_right, colour, 2, cv2.LINE_AA)
+        cv2.circle(canvas, (round(x), round(y)), 4, colour, -1, cv2.LINE_AA)
+        _label(canvas, str(target), (top_left[0] + 3, top_left[1] - 6), 0.6 * scale)
+    _label(
+        canvas,
+        f"frame {t + 1}/{data.n_frames}  {data.pipeline}",
+        (10, int(28 * scale)),
+        0.7 * scale,
+    )
+    return canvas
+
+
+def draw_gap_panel(image_a: Image, image_b: Image, gap: Gap, data: RunData) -> Image:
+    """Frame ``a`` beside frame ``b`` with a line linking each identity across the interval.
+
+    Returns an image the size of ``image_b``: each frame is scaled to half the width.
+    """
+    height, width = image_b.shape[:2]
+    panel = np.zeros_like(image_b)
+    half_width = width // 2
+    factor = half_width / width
+    scaled_height = round(height * factor)
+    top = (height - scaled_height) // 2
+    for index, image in enumerate((image_a, image_b)):
+        small = cv2.resize(image, (half_width, scaled_height), interpolation=cv2.INTER_AREA)
+        panel[top : top + scaled_height, index * half_width : (index + 1) * half_width] = small
+    cv2.line(panel, (half_width, 0), (half_width, height - 1), (200, 200, 200), 2)
+    positions_a = data.tracks.get(gap.a, {})
+    # Targets the run reported on frame b (inside the image); gaps.json also has those outside.
+    positions_b = data.tracks.get(gap.b, {})
+    for target, (xa, ya) in sorted(positions_a.items()):
+        if target not in positions_b:
+            continue
+        xb, yb = positions_b[target]
+        colour = identity_colour(target)
+        start = (round(xa * factor), round(top + ya * factor))
+        end = (round(half_width + xb * factor), round(top + yb * factor))
+        cv2.line(panel, start, end, colour, 2, cv2.LINE_AA)
+        for point in (start, end):
+            cv2.circle(panel, point, 5, colour, -1, cv2.LINE_AA)
+        _label(panel, str(target), (end[0] + 6, end[1] - 6), 0.5)
+    scale = max(0.5, height / 900)
+    chosen = f", {gap.chosen}" if gap.chosen else ""
+    _label(panel, f"frame a = {gap.a + 1}", (10, max(24, top - 12)), 0.7 * scale)
+    _label(panel, f"frame b = {gap.b + 1}", (half_width + 10, max(24, top - 12)), 0.7 * scale)
+    _label(
+        panel,
+        f"interval of {gap.b - gap.a - 1} info-less frames{chosen}",
+        (10, min(height - 12, top + scaled_height + int(30 * scale))),
+        0.7 * scale,
+    )
+    return panel
+
+
+__all__ = [
+    "Gap",
+    "RunData",
+    "blank_frame",
+    "draw_frame",
+    "draw_gap_panel",
+    "identity_colour",
+    "load_run_data",
+]

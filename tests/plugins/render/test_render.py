@@ -1,0 +1,119 @@
+"""trackfw render: an MP4 with identities, trails, info-less frames and interval panels."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from trackfw.cli import main
+from trackfw_plugins.datasets.points import make_points_video
+from trackfw_plugins.render.draw import identity_colour, load_run_data
+
+REPO = Path(__file__).resolve().parents[3]
+
+
+@pytest.fixture
+def run_dir(tmp_path: Path) -> Path:
+    make_points_video(
+        tmp_path / "data" / "clip",
+        n_frames=60,
+        n_targets=3,
+        n_others=1,
+        intervals=[(20, 29)],
+        width=320,
+        height=240,
+    )
+    out = tmp_path / "runs"
+    pipeline = REPO / "pipelines" / "kalman1-tr-oracle.yaml"
+    assert (
+        main(["run", str(pipeline), "--input", str(tmp_path / "data"), "--output", str(out), "-q"])
+        == 0
+    )
+    return out
+
+
+def _frames(path: Path) -> list[np.ndarray]:
+    capture = cv2.VideoCapture(str(path))
+    frames = []
+    while True:
+        ok, image = capture.read()
+        if not ok:
+            break
+        frames.append(image)
+    capture.release()
+    return frames
+
+
+def test_render_writes_frames_panels_and_pngs(run_dir: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "render" / "clip.mp4"
+    code = main(
+        [
+            "render",
+            str(run_dir),
+            "--out",
+            str(out),
+            "--panel-frames",
+            "5",
+            "--png-frames",
+            "10,25",
+            "--png-panels",
+        ]
+    )
+    assert code == 0, capsys.readouterr().err
+    data = load_run_data(run_dir / "clip")
+    assert len(data.gaps) == 1
+    frames = _frames(out)
+    assert len(frames) == 60 + 5  # every video frame plus the held panel
+    assert frames[0].shape == (240, 320, 3)
+    pngs = sorted(path.name for path in out.parent.glob("*.png"))
+    gap = data.gaps[0]
+    panel_name = f"clip-gap{gap.a + 1:06d}-{gap.b + 1:06d}.png"
+    assert pngs == ["clip-frame000010.png", "clip-frame000025.png", panel_name]
+
+    still = cv2.imread(str(out.parent / "clip-frame000010.png"))
+    assert still is not None
+    # Each target's point is drawn in its identity colour.
+    for target, (x, y) in data.tracks[9].items():
+        colour = np.array(identity_colour(target), dtype=int)
+        assert np.abs(still[round(y), round(x)].astype(int) - colour).max() <= 2, target
+    # An info-less frame is marked with a red border; a normal one is not.
+    infoless = cv2.imread(str(out.parent / "clip-frame000025.png"))
+    assert infoless is not None
+    assert 24 in data.infoless
+    assert tuple(infoless[1, 160]) == (40, 40, 220)
+    assert tuple(still[1, 160]) != (40, 40, 220)
+    panel = cv2.imread(str(out.parent / panel_name))
+    assert panel is not None
+    # A line per identity crosses the divider between frame a and frame b.
+    crossing = panel[:, 160 + 6]
+    for target in data.tracks[data.gaps[0].a]:
+        colour = np.array(identity_colour(target), dtype=int)
+        assert (np.abs(crossing.astype(int) - colour).max(axis=1) <= 40).any(), target
+
+
+def test_render_names_the_videos_when_several_runs_are_present(
+    run_dir: Path, tmp_path: Path, capsys
+) -> None:
+    make_points_video(tmp_path / "data" / "other", n_frames=20, intervals=[], width=320, height=240)
+    pipeline = REPO / "pipelines" / "kalman1-tr-oracle.yaml"
+    assert (
+        main(
+            [
+                "run",
+                str(pipeline),
+                "--input",
+                str(tmp_path / "data"),
+                "--output",
+                str(run_dir),
+                "-q",
+            ]
+        )
+        == 0
+    )
+    assert main(["render", str(run_dir)]) == 2
+    assert "choose one with --video" in capsys.readouterr().err
+    assert main(["render", str(run_dir), "--video", "other", "--panel-frames", "0"]) == 0
+    assert len(_frames(run_dir / "other" / "render.mp4")) == 20
