@@ -1,0 +1,112 @@
+"""Speed of the edgebox-cnn head detector per frame, split into proposals and CNN scoring.
+
+Usage::
+
+    python benchmarks/detector_speed.py [--video DIR] [--frames 20] [--threads 1]
+
+``--video`` is a trackfw video folder (frames are resized to 1280x720 when they differ); without it
+a synthetic 1280x720 frame (textured ground, 30 disc "heads") is used. Single process, onnxruntime
+with ``--threads`` intra-op threads (default 1, the detector's default).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import statistics
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from trackfw_plugins.detectors.edgebox_cnn import EdgeBoxCnnDetector, EdgeBoxCnnParams
+
+WIDTH, HEIGHT = 1280, 720
+
+
+def synthetic_frames(count: int) -> list[np.ndarray]:
+    """Textured 1280x720 frames with 30 disc heads each (when no video is given)."""
+    rng = np.random.default_rng(0)
+    frames = []
+    for _ in range(count):
+        noise = rng.normal(128, 20, (HEIGHT // 8, WIDTH // 8, 3)).clip(0, 255).astype(np.uint8)
+        frame = cv2.resize(noise, (WIDTH, HEIGHT), interpolation=cv2.INTER_CUBIC)
+        for x, y in zip(
+            rng.uniform(20, WIDTH - 20, 30), rng.uniform(20, HEIGHT - 20, 30), strict=True
+        ):
+            colour = tuple(int(c) for c in rng.integers(0, 255, 3))
+            cv2.circle(frame, (int(x), int(y)), int(rng.integers(5, 15)), colour, -1)
+        frames.append(frame)
+    return frames
+
+
+def video_frames(video: Path, count: int) -> list[np.ndarray]:
+    """Up to ``count`` frames of a video folder, spread over its length, at 1280x720."""
+    from trackfw.dataset import load_video
+    from trackfw.video_io import iter_frames
+
+    context = load_video(video)
+    step = max(1, context.n_frames // count)
+    frames = []
+    for t, image, status in iter_frames(context, decode=True):
+        if t % step == 0 and status == "ok" and image is not None:
+            if image.shape[:2] != (HEIGHT, WIDTH):
+                image = cv2.resize(image, (WIDTH, HEIGHT), interpolation=cv2.INTER_AREA)
+            frames.append(image)
+    return frames[:count]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--video", type=Path, default=None, help="trackfw video folder")
+    parser.add_argument("--frames", type=int, default=20, help="frames to time")
+    parser.add_argument("--threads", type=int, default=1, help="onnxruntime intra-op threads")
+    parser.add_argument("--blob-width", type=int, default=None, help="override blob_width")
+    parser.add_argument("--work-width", type=int, default=None, help="override work_width")
+    arguments = parser.parse_args()
+    frames = (
+        video_frames(arguments.video, arguments.frames)
+        if arguments.video
+        else synthetic_frames(arguments.frames)
+    )
+    overrides = {
+        key: value
+        for key, value in (
+            ("blob_width", arguments.blob_width),
+            ("work_width", arguments.work_width),
+        )
+        if value is not None
+    }
+    params = EdgeBoxCnnParams(intra_op_threads=arguments.threads, **overrides)
+    detector = EdgeBoxCnnDetector(params)
+    detector.detect_image(frames[0])  # warm-up (onnxruntime allocations)
+    totals, proposals, scoring, counts, found = [], [], [], [], []
+    for frame in itertools.islice(itertools.cycle(frames), arguments.frames):
+        started = time.perf_counter()
+        detections = detector.detect_image(frame)
+        totals.append(time.perf_counter() - started)
+        proposals.append(detector.last_timing["proposals"])
+        scoring.append(detector.last_timing["scoring"])
+        counts.append(detector.last_timing["proposed"])
+        found.append(len(detections))
+
+    def ms(values: list[float]) -> str:
+        return f"{1000 * statistics.mean(values):6.1f} ms (median {1000 * statistics.median(values):.1f})"
+
+    source = arguments.video or "synthetic frames"
+    print(f"edgebox-cnn on {len(totals)} frames of {source} at {WIDTH}x{HEIGHT}, 1 process,")
+    print(
+        f"  work_width {params.work_width}, blob_width {params.blob_width}, threads {params.intra_op_threads}"
+    )
+    print(f"  total      {ms(totals)}  -> {1 / statistics.mean(totals):.1f} fps")
+    print(f"  proposals  {ms(proposals)}  ({statistics.mean(counts):.0f} boxes per frame)")
+    print(f"  scoring    {ms(scoring)}")
+    print(
+        f"  rest (NMS) {ms([t - p - s for t, p, s in zip(totals, proposals, scoring, strict=True)])}"
+    )
+    print(f"  detections {statistics.mean(found):.1f} per frame")
+
+
+if __name__ == "__main__":
+    main()

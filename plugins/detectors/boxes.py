@@ -1,0 +1,73 @@
+"""Small box helpers shared by the detectors of this plugin: NMS, head points from body boxes."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from trackfw.records import Detections
+
+#: Head point of a full-body box, relative to its top: ``(left + w/2, top + 0.08 h)``.
+BODY_HEAD_RATIO = 0.08
+
+
+def non_maximum_suppression(
+    boxes: NDArray[np.float64], scores: NDArray[np.float64], score_threshold: float, iou: float
+) -> NDArray[np.int64]:
+    """Indices kept by ``cv2.dnn.NMSBoxes`` (score threshold then greedy IoU suppression).
+
+    Args:
+        boxes: ``(N, 4)`` boxes as ``(left, top, width, height)``.
+        scores: ``(N,)`` scores.
+        score_threshold: boxes scoring below it are dropped.
+        iou: overlap above which the lower-scoring box is suppressed.
+
+    Returns:
+        ``(K,)`` indices into ``boxes``, best score first.
+
+    >>> import numpy as np
+    >>> boxes = np.array([[0, 0, 10, 10], [1, 1, 10, 10], [50, 50, 10, 10]], dtype=float)
+    >>> non_maximum_suppression(boxes, np.array([0.9, 0.8, 0.7]), 0.5, 0.3).tolist()
+    [0, 2]
+    """
+    if len(boxes) == 0:
+        return np.zeros(0, dtype=np.int64)
+    kept = cv2.dnn.NMSBoxes(
+        boxes.astype(np.float32).tolist(), scores.astype(np.float32).tolist(), score_threshold, iou
+    )
+    return np.asarray(kept, dtype=np.int64).reshape(-1)
+
+
+def head_points(
+    boxes: NDArray[np.float64], point: str, body_ratio: float = BODY_HEAD_RATIO
+) -> NDArray[np.float64]:
+    """The head point of each ``(N, 4)`` box: ``centre`` (a head box), ``top`` or ``body``.
+
+    For ``body`` (a full-body box) the point is ``(left + w/2, top + body_ratio · h)``.
+
+    >>> import numpy as np
+    >>> head_points(np.array([[10.0, 20.0, 40.0, 100.0]]), "body").tolist()
+    [[30.0, 28.0]]
+    >>> head_points(np.array([[10.0, 20.0, 40.0, 100.0]]), "centre").tolist()
+    [[30.0, 70.0]]
+    """
+    x = boxes[:, 0] + 0.5 * boxes[:, 2]
+    if point == "body":
+        y = boxes[:, 1] + body_ratio * boxes[:, 3]
+    elif point == "top":
+        y = boxes[:, 1]
+    else:
+        y = boxes[:, 1] + 0.5 * boxes[:, 3]
+    return np.stack([x, y], axis=1)
+
+
+def detections_from_boxes(
+    boxes: NDArray[np.float64],
+    scores: NDArray[np.float64],
+    point: str,
+    body_ratio: float = BODY_HEAD_RATIO,
+) -> Detections:
+    """Detections with the given boxes, scores and head points taken as ``point``."""
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    return Detections(points=head_points(boxes, point, body_ratio), scores=scores, boxes=boxes)

@@ -1,0 +1,187 @@
+"""The reference head detector: EdgeBoxes proposals scored by a small CNN (ALGORITHMS.md §7).
+
+Pipeline per frame: EdgeBoxes on the frame reduced to ``work_width`` (plus, [OURS], DoG blob
+proposals, see :mod:`.blob_proposals`) → keep head-sized boxes → grow by R-CNN context, warp to
+the CNN input and score in batches (onnxruntime) → threshold 0.5 → ``cv2.dnn.NMSBoxes(boxes,
+scores, 0.5, 0.3)`` → detection point = box centre. ``blob_width: 0`` gives the paper's
+EdgeBoxes-only pipeline.
+"""
+
+from __future__ import annotations
+
+import time
+from contextlib import ExitStack
+from importlib import resources
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field
+
+from trackfw.errors import UserError
+from trackfw.records import Detections, FrameData
+from trackfw.stages import Detector, StageParams
+from trackfw_plugins.detectors.boxes import detections_from_boxes, non_maximum_suppression
+from trackfw_plugins.detectors.edge_proposals import EdgeBoxesSettings
+from trackfw_plugins.detectors.head_scorer import HeadScorer
+from trackfw_plugins.detectors.proposals import HeadProposer, ProposalSettings
+
+SHIPPED_MODEL = "head_cnn.onnx"
+"""File name of the head classifier shipped in ``trackfw_plugins/detectors/models``."""
+
+#: Normalisation of the shipped model (pixels in [0, 1], RGB).
+SHIPPED_MEAN = (0.5, 0.5, 0.5)
+SHIPPED_STD = (0.25, 0.25, 0.25)
+
+
+def shipped_model_path() -> Path:
+    """Path of the shipped head classifier (a real file in both wheel and editable installs)."""
+    resource = resources.files("trackfw_plugins.detectors") / "models" / SHIPPED_MODEL
+    with ExitStack() as stack:
+        # Package data installed from a wheel or an editable checkout is already a file, so
+        # the path stays valid after the context closes.
+        return Path(stack.enter_context(resources.as_file(resource)))
+
+
+class EdgeBoxCnnParams(StageParams):
+    """Parameters of the ``edgebox-cnn`` detector."""
+
+    model: str = Field(
+        "", description="ONNX head classifier; empty = the model shipped with trackfw."
+    )
+    sed_model: str = Field(
+        "",
+        description="Optional OpenCV structured-edge model (model.yml.gz); empty = Sobel edges.",
+    )
+    work_width: int = Field(
+        640, ge=0, description="Frames are reduced to this width for EdgeBoxes (px); 0 = off."
+    )
+    alpha: float = Field(0.65, gt=0, lt=1, description="EdgeBoxes sliding-window step size.")
+    beta: float = Field(0.75, gt=0, le=1, description="EdgeBoxes NMS threshold on proposals.")
+    kappa: float = Field(2.0, gt=0, description="EdgeBoxes scale sensitivity (>1: small boxes).")
+    max_aspect_ratio: float = Field(1.5, ge=1, description="EdgeBoxes max box aspect ratio.")
+    min_box_area: float = Field(
+        64.0, ge=1, description="EdgeBoxes min box area, in working-resolution px²."
+    )
+    max_boxes: int = Field(500, ge=1, description="EdgeBoxes max number of proposals.")
+    edge_min_mag: float = Field(0.4, ge=0, description="EdgeBoxes edge min magnitude.")
+    edge_merge_threshold: float = Field(1.0, ge=0, description="EdgeBoxes edge merge threshold.")
+    cluster_min_mag: float = Field(1.0, ge=0, description="EdgeBoxes cluster min magnitude.")
+    blob_width: int = Field(
+        1280,
+        ge=0,
+        description="Frames are reduced to this width for DoG blob proposals (px); 0 = off.",
+    )
+    blob_threshold: float = Field(
+        0.02, ge=0, description="Min scale-normalised DoG response of a blob (grey/255)."
+    )
+    blob_max_per_scale: int = Field(150, ge=1, description="Strongest blobs kept per scale.")
+    min_head_size: float = Field(
+        8.0, gt=0, description="Smallest box side kept, in px at 1080p (scaled by height/1080)."
+    )
+    max_head_size: float = Field(
+        120.0, gt=0, description="Largest box side kept, in px at 1080p (scaled by height/1080)."
+    )
+    context: float = Field(
+        16.0,
+        ge=0,
+        lt=112,
+        description="R-CNN context: px of a 224-px warped frame added around each box.",
+    )
+    input_size: int = Field(0, ge=0, description="CNN input side (px); 0 = read it from the model.")
+    mean: tuple[float, float, float] = Field(
+        SHIPPED_MEAN, description="Per-channel mean of [0,1] RGB pixels for the CNN."
+    )
+    std: tuple[float, float, float] = Field(
+        SHIPPED_STD, description="Per-channel std of [0,1] RGB pixels for the CNN."
+    )
+    output_form: Literal["auto", "logit", "logits2", "probability"] = Field(
+        "auto",
+        description="CNN output: logit (sigmoid), logits2 (softmax, 1=head), probability, auto.",
+    )
+    score_threshold: float = Field(0.5, ge=0, le=1, description="Head score threshold.")
+    nms_iou: float = Field(0.3, gt=0, le=1, description="IoU threshold of cv2.dnn.NMSBoxes.")
+    batch_size: int = Field(64, ge=1, description="Crops per onnxruntime call.")
+    intra_op_threads: int = Field(1, ge=1, description="onnxruntime intra-op threads.")
+
+    def proposal_settings(self) -> ProposalSettings:
+        """The proposal part of these parameters."""
+        return ProposalSettings(
+            edge_boxes=EdgeBoxesSettings(
+                alpha=self.alpha,
+                beta=self.beta,
+                kappa=self.kappa,
+                max_aspect_ratio=self.max_aspect_ratio,
+                min_box_area=self.min_box_area,
+                max_boxes=self.max_boxes,
+                edge_min_mag=self.edge_min_mag,
+                edge_merge_threshold=self.edge_merge_threshold,
+                cluster_min_mag=self.cluster_min_mag,
+            ),
+            edge_boxes_width=self.work_width,
+            blob_width=self.blob_width,
+            blob_threshold=self.blob_threshold,
+            blob_max_per_scale=self.blob_max_per_scale,
+            min_head_size=self.min_head_size,
+            max_head_size=self.max_head_size,
+            sed_model=self.sed_model or None,
+        )
+
+
+class EdgeBoxCnnDetector(Detector):
+    """EdgeBoxes (+ blob) proposals scored by a small CNN head classifier (the paper's detector)."""
+
+    name = "edgebox-cnn"
+    Params = EdgeBoxCnnParams
+    uses_pixels = True
+
+    def __init__(self, params: EdgeBoxCnnParams | None = None) -> None:
+        super().__init__(params)
+        assert isinstance(self.params, EdgeBoxCnnParams)
+        settings: EdgeBoxCnnParams = self.params
+        self.settings = settings
+        model_path = Path(settings.model) if settings.model else shipped_model_path()
+        input_size = (settings.input_size, settings.input_size) if settings.input_size else None
+        self.scorer = HeadScorer(
+            model_path,
+            input_size=input_size,
+            mean=settings.mean,
+            std=settings.std,
+            output_form=settings.output_form,
+            intra_op_threads=settings.intra_op_threads,
+            batch_size=settings.batch_size,
+        )
+        self.proposer = HeadProposer(settings.proposal_settings())
+        #: Seconds spent in the last frame's proposal and scoring steps (for benchmarks).
+        self.last_timing: dict[str, float] = {"proposals": 0.0, "scoring": 0.0, "proposed": 0}
+
+    def proposals(self, image: NDArray[np.uint8]) -> NDArray[np.float64]:
+        """Head-sized proposals of a full frame, ``(N, 4)`` in frame pixels."""
+        return self.proposer.propose(image)
+
+    def detect_image(self, image: NDArray[np.uint8]) -> Detections:
+        """Detect heads on a ``(H, W, 3)`` uint8 BGR image."""
+        started = time.perf_counter()
+        boxes = self.proposals(image)
+        proposed = time.perf_counter()
+        scores = self.scorer.score_boxes(image, boxes, self.settings.context)
+        scored = time.perf_counter()
+        self.last_timing = {
+            "proposals": proposed - started,
+            "scoring": scored - proposed,
+            "proposed": len(boxes),
+        }
+        kept = non_maximum_suppression(
+            boxes, scores, self.settings.score_threshold, self.settings.nms_iou
+        )
+        return detections_from_boxes(boxes[kept], scores[kept], "centre")
+
+    def detect(self, frame: FrameData) -> Detections:
+        """Detect heads on ``frame`` (its image must be decoded)."""
+        if frame.image is None:
+            raise UserError(
+                f"{frame.video.path}: frame {frame.t} has no pixels; the edgebox-cnn detector"
+                " needs decoded frames."
+            )
+        return self.detect_image(frame.image)

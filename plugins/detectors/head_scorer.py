@@ -1,0 +1,240 @@
+"""Scores head candidates with an ONNX classifier through onnxruntime (ALGORITHMS.md §7.2).
+
+R-CNN style: each box is grown by a context margin, cut out of the frame (replicating the border),
+warped to the network's input size and scored in batches. The network's input size, channel order,
+normalisation and output form are configurable; the model's declared inputs and outputs are
+checked when it is loaded so that a wrong file fails before any frame is read.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Literal
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from trackfw.errors import UserError
+
+OutputForm = Literal["auto", "logit", "logits2", "probability"]
+
+#: The network frame in which R-CNN (Girshick et al. 2014) measures its 16 px context.
+RCNN_FRAME = 224.0
+
+
+def context_fraction(context: float) -> float:
+    """The share of the box size added on each side for R-CNN-style ``context`` pixels.
+
+    R-CNN warps a box to 224 px with ``context`` px of surrounding image on each side, so the
+    box covers ``224 - 2 * context`` px and grows by ``context / (224 - 2 * context)`` of its size.
+
+    >>> round(context_fraction(16.0), 4)
+    0.0833
+    >>> context_fraction(0.0)
+    0.0
+    """
+    return context / (RCNN_FRAME - 2.0 * context)
+
+
+def extract_crops(
+    image: NDArray[np.uint8],
+    boxes: NDArray[np.float64],
+    size: tuple[int, int],
+    context: float = 16.0,
+) -> NDArray[np.uint8]:
+    """Cut boxes (grown by their context) out of a frame and warp them to ``size``.
+
+    Args:
+        image: ``(H, W, 3)`` uint8 frame.
+        boxes: ``(N, 4)`` boxes as ``(left, top, width, height)`` in pixels.
+        size: ``(height, width)`` of the crops.
+        context: R-CNN context in pixels of a 224-px frame (see :func:`context_fraction`).
+
+    Returns:
+        ``(N, height, width, 3)`` uint8 crops; outside the frame the border is replicated.
+    """
+    crop_height, crop_width = size
+    count = len(boxes)
+    crops = np.zeros((count, crop_height, crop_width, 3), dtype=np.uint8)
+    if count == 0:
+        return crops
+    grow = context_fraction(context)
+    lefts = boxes[:, 0] - grow * boxes[:, 2]
+    tops = boxes[:, 1] - grow * boxes[:, 3]
+    rights = boxes[:, 0] + (1.0 + grow) * boxes[:, 2]
+    bottoms = boxes[:, 1] + (1.0 + grow) * boxes[:, 3]
+    height, width = image.shape[:2]
+    # One padded copy of the frame lets every crop be a plain slice.
+    overflow = max(0.0, -lefts.min(), -tops.min(), rights.max() - width, bottoms.max() - height)
+    pad = math.ceil(overflow) + 1
+    padded = cv2.copyMakeBorder(image, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
+    for index in range(count):
+        x0 = round(lefts[index]) + pad
+        y0 = round(tops[index]) + pad
+        x1 = max(round(rights[index]) + pad, x0 + 1)
+        y1 = max(round(bottoms[index]) + pad, y0 + 1)
+        patch = padded[y0:y1, x0:x1]
+        shrinking = patch.shape[0] > crop_height or patch.shape[1] > crop_width
+        crops[index] = cv2.resize(
+            patch,
+            (crop_width, crop_height),
+            interpolation=cv2.INTER_AREA if shrinking else cv2.INTER_LINEAR,
+        )
+    return crops
+
+
+def crops_to_tensor(
+    crops_bgr: NDArray[np.uint8],
+    mean: Sequence[float] = (0.5, 0.5, 0.5),
+    std: Sequence[float] = (0.25, 0.25, 0.25),
+    rgb: bool = True,
+) -> NDArray[np.float32]:
+    """``(N, h, w, 3)`` uint8 BGR crops -> ``(N, 3, h, w)`` float32 tensor ``(x/255 - mean)/std``.
+
+    >>> crops_to_tensor(np.full((1, 2, 2, 3), 255, dtype=np.uint8)).shape
+    (1, 3, 2, 2)
+    >>> float(crops_to_tensor(np.full((1, 1, 1, 3), 255, dtype=np.uint8)).max())
+    2.0
+    """
+    crops = crops_bgr[..., ::-1] if rgb else crops_bgr
+    tensor = crops.transpose(0, 3, 1, 2).astype(np.float32) / np.float32(255.0)
+    mean_array = np.asarray(mean, dtype=np.float32).reshape(1, 3, 1, 1)
+    std_array = np.asarray(std, dtype=np.float32).reshape(1, 3, 1, 1)
+    return ((tensor - mean_array) / std_array).astype(np.float32)
+
+
+def _sigmoid(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    return 0.5 * (1.0 + np.tanh(0.5 * values))
+
+
+class HeadScorer:
+    """An onnxruntime session that maps head crops to head probabilities.
+
+    Args:
+        model_path: the ``.onnx`` file: one NCHW float32 input, one output of shape ``(N,)``,
+            ``(N, 1)`` or ``(N, 2)``.
+        input_size: ``(height, width)``; None takes it from the model (it must then be static).
+        mean: per-channel mean subtracted from pixels scaled to [0, 1], in model channel order.
+        std: per-channel standard deviation the pixels are divided by.
+        rgb: whether the model expects RGB (frames are BGR).
+        output_form: ``logit`` (one value, sigmoid), ``logits2`` (two classes, softmax, index 1 is
+            head), ``probability`` (already in [0, 1]) or ``auto`` (one value -> logit, two ->
+            logits2).
+        intra_op_threads: onnxruntime threads inside one operator.
+        batch_size: crops per onnxruntime call.
+
+    Raises:
+        UserError: the file is missing or damaged, or its inputs/outputs are not as expected.
+    """
+
+    def __init__(
+        self,
+        model_path: str | Path,
+        input_size: tuple[int, int] | None = None,
+        mean: Sequence[float] = (0.5, 0.5, 0.5),
+        std: Sequence[float] = (0.25, 0.25, 0.25),
+        rgb: bool = True,
+        output_form: OutputForm = "auto",
+        intra_op_threads: int = 1,
+        batch_size: int = 64,
+    ) -> None:
+        import onnxruntime
+
+        path = Path(model_path)
+        if not path.is_file():
+            raise UserError(f"{path}: model file not found; expected an ONNX head classifier.")
+        options = onnxruntime.SessionOptions()
+        options.intra_op_num_threads = max(1, int(intra_op_threads))
+        options.inter_op_num_threads = 1
+        options.log_severity_level = 3
+        try:
+            self.session = onnxruntime.InferenceSession(
+                str(path), sess_options=options, providers=["CPUExecutionProvider"]
+            )
+        except Exception as error:  # onnxruntime raises several private exception types
+            raise UserError(
+                f"{path}: model cannot be loaded by onnxruntime ({str(error).splitlines()[0]});"
+                " expected a valid ONNX file."
+            ) from error
+        inputs = self.session.get_inputs()
+        outputs = self.session.get_outputs()
+        if len(inputs) != 1 or len(inputs[0].shape) != 4:
+            shapes = [list(item.shape) for item in inputs]
+            raise UserError(
+                f"{path}: model inputs are {shapes}; expected one NCHW input of rank 4."
+            )
+        if inputs[0].type != "tensor(float)":
+            raise UserError(f"{path}: model input type is {inputs[0].type}; expected float32.")
+        channels, model_height, model_width = inputs[0].shape[1:]
+        if isinstance(channels, int) and channels != 3:
+            raise UserError(f"{path}: model input has {channels} channels; expected 3.")
+        if input_size is None:
+            if not (isinstance(model_height, int) and isinstance(model_width, int)):
+                raise UserError(
+                    f"{path}: model input size is dynamic; set input_size to (height, width)."
+                )
+            input_size = (model_height, model_width)
+        for declared, wanted, axis in (
+            (model_height, input_size[0], "height"),
+            (model_width, input_size[1], "width"),
+        ):
+            if isinstance(declared, int) and declared != wanted:
+                raise UserError(
+                    f"{path}: model input {axis} is {declared}; expected input_size {axis}"
+                    f" {wanted}."
+                )
+        if len(outputs) < 1:
+            raise UserError(f"{path}: model has no output; expected head scores.")
+        last = outputs[0].shape[-1] if len(outputs[0].shape) >= 2 else 1
+        if len(outputs[0].shape) > 2 or (isinstance(last, int) and last not in (1, 2)):
+            raise UserError(
+                f"{path}: model output shape is {list(outputs[0].shape)}; expected (N,), (N, 1)"
+                " or (N, 2) head scores."
+            )
+        if output_form == "auto":
+            output_form = "logits2" if last == 2 else "logit"
+        self.path = path
+        self.input_name = inputs[0].name
+        self.output_name = outputs[0].name
+        self.input_size = (int(input_size[0]), int(input_size[1]))
+        self.mean = np.asarray(mean, dtype=np.float32).reshape(1, 3, 1, 1)
+        self.std = np.asarray(std, dtype=np.float32).reshape(1, 3, 1, 1)
+        self.rgb = rgb
+        self.output_form: OutputForm = output_form
+        self.batch_size = max(1, int(batch_size))
+
+    def preprocess(self, crops_bgr: NDArray[np.uint8]) -> NDArray[np.float32]:
+        """``(N, h, w, 3)`` uint8 BGR crops -> ``(N, 3, h, w)`` normalised float32 tensor."""
+        return crops_to_tensor(
+            crops_bgr, self.mean.ravel().tolist(), self.std.ravel().tolist(), self.rgb
+        )
+
+    def to_probability(self, raw: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Map the model's raw ``(N,)``/``(N, 1)``/``(N, 2)`` output to head probabilities."""
+        raw = np.asarray(raw, dtype=np.float64)
+        if self.output_form == "logits2":
+            two = raw.reshape(len(raw), 2)
+            return _sigmoid(two[:, 1] - two[:, 0])
+        values = raw.reshape(len(raw), -1)[:, -1]
+        if self.output_form == "probability":
+            return np.clip(values, 0.0, 1.0)
+        return _sigmoid(values)
+
+    def score_crops(self, crops_bgr: NDArray[np.uint8]) -> NDArray[np.float64]:
+        """Head probability of each ``(N, h, w, 3)`` uint8 BGR crop (already at input size)."""
+        count = len(crops_bgr)
+        scores = np.zeros(count, dtype=np.float64)
+        for start in range(0, count, self.batch_size):
+            batch = self.preprocess(crops_bgr[start : start + self.batch_size])
+            (raw, *_rest) = self.session.run([self.output_name], {self.input_name: batch})
+            scores[start : start + len(batch)] = self.to_probability(raw)
+        return scores
+
+    def score_boxes(
+        self, image: NDArray[np.uint8], boxes: NDArray[np.float64], context: float = 16.0
+    ) -> NDArray[np.float64]:
+        """Head probability of each ``(N, 4)`` box of ``image`` (grown by ``context``)."""
+        return self.score_crops(extract_crops(image, boxes, self.input_size, context))

@@ -1,0 +1,120 @@
+"""The ``mot-file`` detector: precomputed detections in MOTChallenge det.txt format (§7.2c).
+
+Rows are ``frame,id,left,top,width,height,score,...`` with 1-based frames. The file path is a
+template: ``{video}`` is the video's folder, ``{name}`` its name; a relative path is taken from the
+video's folder. No pixels are read.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field
+
+from trackfw.errors import UserError
+from trackfw.records import Detections, FrameData, VideoContext
+from trackfw.stages import Detector, StageParams
+from trackfw_plugins.detectors.boxes import detections_from_boxes
+
+
+class MotFileParams(StageParams):
+    """Parameters of the ``mot-file`` detector."""
+
+    path: str = Field(
+        "{video}/det/det.txt",
+        description="det.txt path; {video} = the video folder, {name} = its name; relative"
+        " paths start at the video folder.",
+    )
+    point: Literal["body", "centre", "top"] = Field(
+        "body",
+        description="Head point of a box: body = (left + w/2, top + 0.08 h), centre, top.",
+    )
+    score_threshold: float = Field(
+        float("-inf"), description="Drop rows whose raw score is below this."
+    )
+    score_transform: Literal["clip", "sigmoid"] = Field(
+        "clip", description="Map raw scores to [0, 1]: clip, or the logistic function."
+    )
+
+
+def read_det_file(path: Path) -> dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """A det.txt as ``{0-based frame: ((N, 4) boxes, (N,) raw scores)}``.
+
+    Raises:
+        UserError: naming the file and line of a malformed row.
+    """
+    grouped: dict[int, list[list[float]]] = {}
+    with path.open(newline="") as handle:
+        for line_number, row in enumerate(csv.reader(handle), start=1):
+            if not row or not "".join(row).strip():
+                continue
+            try:
+                values = [float(value) for value in row[:7]]
+            except ValueError as error:
+                raise UserError(
+                    f"{path}: line {line_number}: expected numbers in"
+                    " frame,id,left,top,width,height,score."
+                ) from error
+            if len(values) < 6:
+                raise UserError(
+                    f"{path}: line {line_number}: {len(values)} columns; expected at least 6"
+                    " (frame,id,left,top,width,height[,score])."
+                )
+            frame = int(values[0])
+            if frame < 1:
+                raise UserError(f"{path}: line {line_number}: frame {frame}; expected >= 1.")
+            score = values[6] if len(values) > 6 else 1.0
+            grouped.setdefault(frame - 1, []).append([*values[2:6], score])
+    table: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+    for frame, rows in grouped.items():
+        array = np.asarray(rows, dtype=np.float64)
+        table[frame] = (array[:, :4], array[:, 4])
+    return table
+
+
+class MotFileDetector(Detector):
+    """Precomputed detections from a MOTChallenge det.txt file."""
+
+    name = "mot-file"
+    Params = MotFileParams
+    uses_pixels = False
+
+    def __init__(self, params: MotFileParams | None = None) -> None:
+        super().__init__(params)
+        assert isinstance(self.params, MotFileParams)
+        self.settings: MotFileParams = self.params
+        self.table: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+
+    def resolve(self, video: VideoContext) -> Path:
+        """The det.txt path for ``video``."""
+        folder = Path(video.path)
+        if folder.is_file():
+            folder = folder.parent
+        text = self.settings.path.replace("{video}", str(folder)).replace("{name}", video.name)
+        path = Path(text).expanduser()
+        return path if path.is_absolute() else folder / path
+
+    def start(self, video: VideoContext) -> None:
+        """Read the video's det.txt."""
+        path = self.resolve(video)
+        if not path.is_file():
+            raise UserError(
+                f"{path}: detections file not found (mot-file path {self.settings.path!r});"
+                " expected a MOTChallenge det.txt."
+            )
+        self.table = read_det_file(path)
+
+    def detect(self, frame: FrameData) -> Detections:
+        """The rows of frame ``frame.t`` above the score threshold."""
+        boxes, raw = self.table.get(frame.t, (np.zeros((0, 4)), np.zeros(0)))
+        keep = raw >= self.settings.score_threshold
+        boxes, raw = boxes[keep], raw[keep]
+        if self.settings.score_transform == "sigmoid":
+            scores = 1.0 / (1.0 + np.exp(-raw))
+        else:
+            scores = np.clip(raw, 0.0, 1.0)
+        return detections_from_boxes(boxes, scores, self.settings.point)

@@ -1,0 +1,83 @@
+"""Tests of the edgebox-cnn detector: construction checks and detection on synthetic frames."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from trackfw.errors import UserError
+from trackfw.records import FrameData, VideoContext
+from trackfw_plugins.detectors.edgebox_cnn import (
+    EdgeBoxCnnDetector,
+    EdgeBoxCnnParams,
+    shipped_model_path,
+)
+
+CENTRES = [(100.0, 100.0), (300.0, 200.0), (500.0, 120.0)]
+
+
+def test_params_have_defaults_and_reject_unknown_keys() -> None:
+    params = EdgeBoxCnnParams()
+    assert params.score_threshold == 0.5 and params.nms_iou == 0.3 and params.context == 16.0
+    assert params.intra_op_threads == 1
+    with pytest.raises(ValidationError):
+        EdgeBoxCnnParams(unknown=1)
+
+
+def test_shipped_model_loads() -> None:
+    assert shipped_model_path().is_file()
+    detector = EdgeBoxCnnDetector()
+    assert detector.scorer.input_size[0] in (32, 48) and detector.needs_pixels
+
+
+@pytest.mark.parametrize("content", [None, b"", b"\x00\x01 not onnx"])
+def test_missing_or_damaged_model_fails_at_construction(tmp_path: Path, content) -> None:
+    path = tmp_path / "model.onnx"
+    if content is not None:
+        path.write_bytes(content)
+    with pytest.raises(UserError, match=str(path.name)):
+        EdgeBoxCnnDetector(EdgeBoxCnnParams(model=str(path)))
+
+
+def test_model_with_unexpected_input_fails_at_construction(
+    tmp_path: Path, make_constant_model
+) -> None:
+    model = make_constant_model(tmp_path / "m.onnx", {"logit": np.zeros((1, 1))}, [1, 3, 64])
+    with pytest.raises(UserError, match="rank 4"):
+        EdgeBoxCnnDetector(EdgeBoxCnnParams(model=str(model)))
+
+
+def test_detects_each_disc_once_near_its_centre(
+    tmp_path: Path, make_scorer, make_disc_image
+) -> None:
+    model = make_scorer(tmp_path / "scorer.onnx")
+    # EdgeBoxes alone (the paper's proposals): the toy scorer is not discriminative enough to
+    # sort out the many blob boxes around each disc.
+    detector = EdgeBoxCnnDetector(EdgeBoxCnnParams(model=str(model), work_width=640, blob_width=0))
+    video = VideoContext(name="discs", path=str(tmp_path), n_frames=1, width=640, height=360)
+    detections = detector.detect(FrameData(t=0, image=make_disc_image(CENTRES), video=video))
+    assert detections.boxes is not None and len(detections) >= len(CENTRES)
+    assert ((detections.scores >= 0.5) & (detections.scores <= 1)).all()
+    centres = np.asarray(CENTRES)
+    distance = np.linalg.norm(detections.points[:, None] - centres[None], axis=2)
+    assert (distance.min(axis=0) < 4).all()  # every disc (diameter 24) found near its centre
+    assert (distance.min(axis=1) < 12 + 2).all()  # and nothing off the discs (radius 12)
+    box_centres = detections.boxes[:, :2] + detections.boxes[:, 2:] / 2
+    assert np.allclose(box_centres, detections.points)
+    assert detector.last_timing["proposed"] > 0
+
+
+def test_frame_without_pixels_is_a_user_error(tmp_path: Path, make_scorer) -> None:
+    detector = EdgeBoxCnnDetector(EdgeBoxCnnParams(model=str(make_scorer(tmp_path / "s.onnx"))))
+    video = VideoContext(name="v", path=str(tmp_path), n_frames=1, width=640, height=360)
+    with pytest.raises(UserError, match="pixels"):
+        detector.detect(FrameData(t=0, image=None, video=video))
+
+
+def test_blank_frame_gives_no_detection(tmp_path: Path, make_scorer) -> None:
+    detector = EdgeBoxCnnDetector(EdgeBoxCnnParams(model=str(make_scorer(tmp_path / "s.onnx"))))
+    detections = detector.detect_image(np.full((360, 640, 3), 80, dtype=np.uint8))
+    assert len(detections) == 0 and detections.points.shape == (0, 2)
