@@ -11,13 +11,16 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from trackfw.errors import UserError
+
+if TYPE_CHECKING:
+    import onnxruntime
 
 OutputForm = Literal["auto", "logit", "logits2", "probability"]
 
@@ -110,6 +113,33 @@ def _sigmoid(values: NDArray[np.float64]) -> NDArray[np.float64]:
     return 0.5 * (1.0 + np.tanh(0.5 * values))
 
 
+
+def open_onnx_session(path: Path, intra_op_threads: int, expected: str) -> onnxruntime.InferenceSession:
+    """A CPU onnxruntime session for ``path``; a missing or unloadable file is one UserError.
+
+    Args:
+        path: the ONNX file.
+        intra_op_threads: threads for one operator (1 keeps process-pool workers from competing).
+        expected: what the file should be, for the error sentence ("an ONNX head classifier").
+    """
+    import onnxruntime
+
+    if not path.is_file():
+        raise UserError(f"{path}: model file not found; expected {expected}.")
+    options = onnxruntime.SessionOptions()
+    options.intra_op_num_threads = max(1, int(intra_op_threads))
+    options.inter_op_num_threads = 1
+    options.log_severity_level = 3
+    try:
+        return onnxruntime.InferenceSession(
+            str(path), sess_options=options, providers=["CPUExecutionProvider"]
+        )
+    except Exception as error:  # onnxruntime raises several private exception types
+        raise UserError(
+            f"{path}: model cannot be loaded by onnxruntime ({str(error).splitlines()[0]});"
+            " expected a valid ONNX file."
+        ) from error
+
 class HeadScorer:
     """An onnxruntime session that maps head crops to head probabilities.
 
@@ -141,24 +171,8 @@ class HeadScorer:
         intra_op_threads: int = 1,
         batch_size: int = 64,
     ) -> None:
-        import onnxruntime
-
         path = Path(model_path)
-        if not path.is_file():
-            raise UserError(f"{path}: model file not found; expected an ONNX head classifier.")
-        options = onnxruntime.SessionOptions()
-        options.intra_op_num_threads = max(1, int(intra_op_threads))
-        options.inter_op_num_threads = 1
-        options.log_severity_level = 3
-        try:
-            self.session = onnxruntime.InferenceSession(
-                str(path), sess_options=options, providers=["CPUExecutionProvider"]
-            )
-        except Exception as error:  # onnxruntime raises several private exception types
-            raise UserError(
-                f"{path}: model cannot be loaded by onnxruntime ({str(error).splitlines()[0]});"
-                " expected a valid ONNX file."
-            ) from error
+        self.session = open_onnx_session(path, intra_op_threads, "an ONNX head classifier")
         inputs = self.session.get_inputs()
         outputs = self.session.get_outputs()
         if len(inputs) != 1 or len(inputs[0].shape) != 4:

@@ -29,7 +29,7 @@ from trackfw.errors import UserError
 from trackfw.records import Detections, FrameData
 from trackfw.stages import Detector, StageParams
 from trackfw_plugins.detectors.boxes import detections_from_boxes, non_maximum_suppression
-from trackfw_plugins.detectors.head_scorer import context_fraction
+from trackfw_plugins.detectors.head_scorer import context_fraction, open_onnx_session
 
 FloatArray = NDArray[np.float64]
 
@@ -100,8 +100,6 @@ class OnnxDetector(Detector):
 
     def __init__(self, params: OnnxDetectorParams | None = None) -> None:
         super().__init__(params)
-        import onnxruntime
-
         assert isinstance(self.params, OnnxDetectorParams)
 
         settings: OnnxDetectorParams = self.params
@@ -109,20 +107,7 @@ class OnnxDetector(Detector):
         if not settings.model:
             raise UserError("onnx detector: field 'model' is empty; expected an ONNX file path.")
         path = Path(settings.model).expanduser()
-        if not path.is_file():
-            raise UserError(f"{path}: model file not found; expected an ONNX detector.")
-        options = onnxruntime.SessionOptions()
-        options.intra_op_num_threads = settings.intra_op_threads
-        options.log_severity_level = 3
-        try:
-            self.session = onnxruntime.InferenceSession(
-                str(path), sess_options=options, providers=["CPUExecutionProvider"]
-            )
-        except Exception as error:  # onnxruntime raises several private exception types
-            raise UserError(
-                f"{path}: model cannot be loaded by onnxruntime ({str(error).splitlines()[0]});"
-                " expected a valid ONNX file."
-            ) from error
+        self.session = open_onnx_session(path, settings.intra_op_threads, "an ONNX detector")
         inputs = self.session.get_inputs()
         if len(inputs) != 1 or len(inputs[0].shape) != 4:
             raise UserError(
