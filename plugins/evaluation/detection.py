@@ -8,48 +8,22 @@ false positives, unmatched heads false negatives.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from trackfw_plugins.evaluation.counts import ConfusionCounts
 from trackfw_plugins.maths.assignment import distance_matrix, hungarian
 
 FloatArray = NDArray[np.float64]
 
 
 @dataclass
-class DetectionCounts:
+class DetectionCounts(ConfusionCounts):
     """Detection counts over frames (pool with ``+``)."""
 
-    tp: int = 0
-    fp: int = 0
-    fn: int = 0
     distance_sum: float = 0.0
-
-    def __add__(self, other: DetectionCounts) -> DetectionCounts:
-        """Pool two count sets."""
-        return DetectionCounts(
-            **{f.name: getattr(self, f.name) + getattr(other, f.name) for f in fields(self)}
-        )
-
-    @property
-    def precision(self) -> float:
-        """TP / (TP + FP); NaN without detections."""
-        total = self.tp + self.fp
-        return self.tp / total if total else float("nan")
-
-    @property
-    def recall(self) -> float:
-        """TP / (TP + FN); NaN without ground-truth heads."""
-        total = self.tp + self.fn
-        return self.tp / total if total else float("nan")
-
-    @property
-    def f1(self) -> float:
-        """2 TP / (2 TP + FP + FN)."""
-        total = 2 * self.tp + self.fp + self.fn
-        return 2 * self.tp / total if total else float("nan")
 
     @property
     def mean_distance(self) -> float:

@@ -7,17 +7,19 @@ info-less and it lies strictly inside a ground-truth interval (frames ``a+1 .. b
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+
+from trackfw_plugins.evaluation.counts import ConfusionCounts
 
 BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int64]
 
 
 @dataclass
-class InfolessCounts:
+class InfolessCounts(ConfusionCounts):
     """Confusion counts of the info-less label over frames (pool with ``+``).
 
     Attributes:
@@ -27,34 +29,7 @@ class InfolessCounts:
         tn: informative frames called informative.
     """
 
-    tp: int = 0
-    fp: int = 0
-    fn: int = 0
     tn: int = 0
-
-    def __add__(self, other: InfolessCounts) -> InfolessCounts:
-        """Pool two count sets."""
-        return InfolessCounts(
-            **{f.name: getattr(self, f.name) + getattr(other, f.name) for f in fields(self)}
-        )
-
-    @property
-    def precision(self) -> float:
-        """TP / (TP + FP); NaN when nothing was called info-less."""
-        total = self.tp + self.fp
-        return self.tp / total if total else float("nan")
-
-    @property
-    def recall(self) -> float:
-        """TP / (TP + FN); NaN when the ground truth has no info-less frame."""
-        total = self.tp + self.fn
-        return self.tp / total if total else float("nan")
-
-    @property
-    def f1(self) -> float:
-        """2 TP / (2 TP + FP + FN); NaN when neither side has an info-less frame."""
-        total = 2 * self.tp + self.fp + self.fn
-        return 2 * self.tp / total if total else float("nan")
 
     @property
     def misclassified(self) -> int:
