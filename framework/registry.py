@@ -14,6 +14,7 @@ import difflib
 import functools
 import importlib.metadata
 import traceback
+import typing
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -347,7 +348,10 @@ def params_schema(params_model: type[BaseModel]) -> list[tuple[str, str, str, st
     rows = []
     for name, info in params_model.model_fields.items():
         annotation = info.annotation
-        type_name = getattr(annotation, "__name__", None) or str(annotation).replace("typing.", "")
+        # Generic forms (Literal[...], list[int], X | None) print their arguments; plain classes
+        # their name.
+        plain = isinstance(annotation, type) and not typing.get_args(annotation)
+        type_name = annotation.__name__ if plain else str(annotation).replace("typing.", "")
         default = (
             "required" if info.is_required() else repr(info.get_default(call_default_factory=True))
         )
