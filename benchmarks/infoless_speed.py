@@ -77,11 +77,13 @@ def main() -> None:
         if arguments.frames is not None
         else synthetic_frames(arguments.count)
     )
-    model = SvmClassifier(SvmParams(model=arguments.model)).model
+    stage = SvmClassifier(SvmParams(model=arguments.model))
+    model = stage.model
     print(
         f"{len(frames)} frames {WIDTH}x{HEIGHT}, OpenCV threads {arguments.threads},"
         f" model with {len(model.support_vectors)} support vectors"
     )
+    print(f"online rules (timed with them): {stage.rules.as_dict()}")
     settings = [
         ("dis", 320, "ultrafast"),
         ("dis", 320, "fast"),

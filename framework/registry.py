@@ -351,7 +351,11 @@ def params_schema(params_model: type[BaseModel]) -> list[tuple[str, str, str, st
         # Generic forms (Literal[...], list[int], X | None) print their arguments; plain classes
         # their name.
         plain = isinstance(annotation, type) and not typing.get_args(annotation)
-        type_name = annotation.__name__ if plain else str(annotation).replace("typing.", "")
+        type_name = (
+            annotation.__name__
+            if plain and annotation is not None
+            else str(annotation).replace("typing.", "")
+        )
         default = (
             "required" if info.is_required() else repr(info.get_default(call_default_factory=True))
         )

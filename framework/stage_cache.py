@@ -137,6 +137,14 @@ def _stage_code(registry: Registry | None, kind: str, type_name: str) -> list[st
     return identity
 
 
+def _resources(registry: Registry | None, kind: str, spec: Mapping[str, Any]) -> list[Path]:
+    """Files a stage reads besides those its parameters name (see ``Stage.resource_files``)."""
+    if registry is None or (kind, spec.get("type")) not in registry.stages:
+        return []
+    entry = registry.stages[(kind, str(spec.get("type")))]
+    return entry.cls.resource_files(entry.cls.Params(**(spec.get("params") or {})))
+
+
 def cache_key(pipeline: Pipeline, video: VideoContext, registry: Registry | None = None) -> str:
     """The key of ``video`` run through the detector and classifier of ``pipeline``."""
     stages = {kind: pipeline.stages[kind] for kind in CACHED_KINDS}
@@ -150,6 +158,13 @@ def cache_key(pipeline: Pipeline, video: VideoContext, registry: Registry | None
             for kind, spec in stages.items()
         },
         "files": _named_files(stages),
+        "resources": _named_files(
+            [
+                str(path)
+                for kind, spec in stages.items()
+                for path in _resources(registry, kind, spec)
+            ]
+        ),
     }
     canonical = json.dumps(recipe, sort_keys=True, default=str)
     return hashlib.sha256(canonical.encode()).hexdigest()[:32]

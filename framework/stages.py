@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Sequence
+from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
@@ -68,6 +69,14 @@ class Stage(abc.ABC):  # noqa: B024 - abstract by intent; each kind adds its met
     def needs_pixels(self) -> bool:
         """Whether this configured instance reads pixels (may depend on its parameters)."""
         return self.uses_pixels or any(stage.needs_pixels for stage in self.nested_stages.values())
+
+    @classmethod
+    def resource_files(cls, params: StageParams) -> list[Path]:
+        """Files the configured stage reads that its parameters do not name (a shipped model).
+
+        Caches key on them, so that a retrained shipped model invalidates cached outputs.
+        """
+        return []
 
     def start(self, video: VideoContext) -> None:  # noqa: B027 - optional hook
         """Reset per-video state before the first frame of ``video``."""

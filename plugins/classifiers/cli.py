@@ -11,6 +11,7 @@ import yaml
 
 from trackfw.atomic import write_json
 from trackfw.errors import UserError
+from trackfw_plugins.classifiers.online_rules import OnlineRules
 
 #: Folder beside the model file that keeps the per-video measurements (NPZ).
 CACHE_FOLDER = "infoless_features.cache"
@@ -56,6 +57,13 @@ def train_classifier(
     replay_rounds: int = 1,
     cache: bool = True,
     echo: Any = typer.echo,
+    enter_probability: float = 0.5,
+    leave_probability: float = 0.5,
+    reanchor_after: int = 0,
+    reanchor_max_motion: float | None = None,
+    select_rules: bool = False,
+    turn_motion: float | None = None,
+    max_hold: int = 300,
 ) -> dict[str, Any]:
     """Train, optionally evaluate, write the model; returns the report (see the command)."""
     from trackfw_plugins.classifiers.training import (
@@ -69,6 +77,7 @@ def train_classifier(
         read_video_list,
         select_videos,
     )
+    from trackfw_plugins.classifiers.training import select_rules as choose_rules
 
     if flow not in ("dis", "farneback"):
         raise UserError(f"--flow {flow!r}: expected 'dis' or 'farneback'.")
@@ -80,6 +89,17 @@ def train_classifier(
         raise UserError(f"--replay-rounds {replay_rounds}: expected at least 1.")
     if flow_width < 16 or not c_max > 0:
         raise UserError("--flow-width must be at least 16 and --c-max positive.")
+    try:
+        rules = OnlineRules(
+            enter_probability,
+            leave_probability,
+            reanchor_after,
+            math.inf if reanchor_max_motion is None else reanchor_max_motion,
+            turn_motion=math.inf if turn_motion is None else turn_motion,
+            max_hold=max_hold,
+        )
+    except ValueError as error:
+        raise UserError(f"the online rule options: {error}.") from None
     settings = FeatureSettings(flow, flow_width, dis_preset, c_max)  # type: ignore[arg-type]  # checked above
     spec = {
         "type": detector,
@@ -90,6 +110,13 @@ def train_classifier(
     train_dirs = select_videos(dataset, train_names)
     echo(f"measuring {len(train_dirs)} training videos with detector {detector!r}")
     train_videos = collect_measurements(train_dirs, spec, settings, cache_dir, echo)
+    selection: list[dict[str, Any]] = []
+    if select_rules:
+        echo("choosing the online rules by cross-validation on the training videos")
+        rules, selection = choose_rules(
+            train_videos, settings, seed=seed, replay_rounds=replay_rounds, log=echo
+        )
+        echo(f"chose {rules.as_dict()}")
     model, summary = fit_model(
         train_videos,
         settings,
@@ -98,6 +125,7 @@ def train_classifier(
         reference=reference,  # type: ignore[arg-type]  # checked above
         replay_rounds=replay_rounds,
         log=echo,
+        rules=rules,
     )
     scores = summary.cross_validated
     echo(
@@ -118,6 +146,8 @@ def train_classifier(
         "grid": summary.grid,
         "cross_validated": scores.as_dict(),
         "support_vectors": len(model.support_vectors),
+        "online_rules": rules.as_dict(),
+        "rule_selection": selection,
     }
     result: dict[str, Any] = {"training": model.training}
     if evaluate_on is not None:
@@ -226,6 +256,51 @@ def register(train_app: typer.Typer) -> None:
         replay_rounds: Annotated[
             int, typer.Option("--replay-rounds", help="Rounds of replay with --reference replay.")
         ] = 1,
+        enter_probability: Annotated[
+            float,
+            typer.Option("--enter-probability", help="Probability that starts an interval (OURS)."),
+        ] = 0.5,
+        leave_probability: Annotated[
+            float,
+            typer.Option(
+                "--leave-probability",
+                help="An interval goes on while the probability is at least this (hysteresis).",
+            ),
+        ] = 0.5,
+        reanchor_after: Annotated[
+            int,
+            typer.Option(
+                "--reanchor-after",
+                help="Consecutive info-less frames after which the C_t reference moves to the"
+                " current frame (0: never).",
+            ),
+        ] = 0,
+        reanchor_max_motion: Annotated[
+            float | None,
+            typer.Option(
+                "--reanchor-max-motion",
+                help="Re-anchor only when the last 5 M_t are at most this (pixels).",
+            ),
+        ] = None,
+        turn_motion: Annotated[
+            float | None,
+            typer.Option(
+                "--turn-motion",
+                help="M_t (pixels) from which a frame is part of a camera turn; an interval begun"
+                " by a turn stays open until a second turn ends (default: no latch).",
+            ),
+        ] = None,
+        max_hold: Annotated[
+            int, typer.Option("--max-hold", help="Longest interval the turn latch holds.")
+        ] = 300,
+        select_rules: Annotated[
+            bool,
+            typer.Option(
+                "--select-rules/--no-select-rules",
+                help="Choose the online rules among RULE_CANDIDATES by cross-validation on the"
+                " training videos (overrides the rule options above).",
+            ),
+        ] = False,
         cache: Annotated[
             bool,
             typer.Option(
@@ -252,4 +327,11 @@ def register(train_app: typer.Typer) -> None:
             reference=reference,
             replay_rounds=replay_rounds,
             cache=cache,
+            enter_probability=enter_probability,
+            leave_probability=leave_probability,
+            reanchor_after=reanchor_after,
+            reanchor_max_motion=reanchor_max_motion,
+            select_rules=select_rules,
+            turn_motion=turn_motion,
+            max_hold=max_hold,
         )

@@ -189,6 +189,7 @@ class FeatureAssembler:
         self._latest_t: int | None = None
         self._latest_spread = 0.0
         self._latest_informative = False
+        self._latest_anchor = False
 
     def push(self, t: int, motion: float, count: float, spread_t: float) -> FloatArray:
         """Add frame ``t``'s ``M_t``, ``N_t``, ``S_t``; return ``x_t`` as an ``(11,)`` array."""
@@ -203,13 +204,14 @@ class FeatureAssembler:
             change = 0.0
             self._latest_informative = True
         else:
-            if self._latest_informative:
+            if self._latest_informative or self._latest_anchor:
                 self._reference_spread = self._latest_spread
             self._motion.append(float(motion))
             self._counts.append(float(count))
             reference = self._reference_spread
             change = 0.0 if reference is None else relative_change(spread_t, reference, self.c_max)
             self._latest_informative = False
+        self._latest_anchor = False
         self._latest_t = t
         self._latest_spread = float(spread_t)
         return np.array([*self._motion, *self._counts, change], dtype=np.float64)
@@ -224,6 +226,19 @@ class FeatureAssembler:
                 f"mark_informative({t}) must follow push({t}); the latest frame is {self._latest_t}"
             )
         self._latest_informative = bool(informative)
+
+    def reanchor(self, t: int) -> None:
+        """Make frame ``t`` (the latest pushed) the reference ``a`` of ``C_t`` whatever its label.
+
+        An [OURS] re-anchoring rule (:mod:`online_rules`) calls this while a long run of info-less
+        decisions keeps the reference frozen, so that ``C_t`` stops comparing with a scene that
+        may have changed since.
+        """
+        if t != self._latest_t:
+            raise ValueError(
+                f"reanchor({t}) must follow push({t}); the latest frame is {self._latest_t}"
+            )
+        self._latest_anchor = True
 
 
 def assemble_features(

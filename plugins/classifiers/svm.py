@@ -1,29 +1,35 @@
 """The ``svm`` classifier: the paper's 11-d feature and RBF SVM (ALGORITHMS.md §6) [PAPER §3.2].
 
 Each frame, the classifier measures ``M_t``, ``N_t`` and ``S_t``, builds ``x_t`` and maps the SVM's
-decision value through the Platt sigmoid stored in the model to a probability; the frame is
-info-less when the probability reaches ``threshold``. It only labels frames: turning labels into
-intervals (§6.4) is the engine's job. The reference frame ``a`` of ``C_t`` follows the decisions:
-the classifier's own decision is used provisionally and the engine's final one, given through
-:meth:`SvmClassifier.feedback`, replaces it.
+decision value through the Platt sigmoid stored in the model to a probability. The online rules
+of :mod:`online_rules` [OURS] turn it into a label: with the paper's rules (a model that records
+none) the frame is info-less when the probability reaches ``threshold`` (0.5); a model may
+record hysteresis, re-anchoring of ``C_t``'s reference and a turn latch, which the stage then
+applies by default (each can be overridden by a parameter). It only labels frames: turning labels
+into intervals (§6.4) is the engine's job. The reference frame ``a`` of ``C_t`` follows the
+decisions: the classifier's own decision is used provisionally and the engine's final one, given
+through :meth:`SvmClassifier.feedback`, replaces it.
 
 The shipped model (``models/infoless_svm.json``) was trained with ``trackfw train classifier
---reference replay --seed 0`` on the synthetic ``paper`` dataset (30 videos, generator seed 2018)
-with oracle detections, DIS ultrafast flow at 320 pixels; its ``training`` field records the
-details. Retrain it for another detector or real footage: ``N_t`` depends on the detector.
+--reference replay`` and the online rules chosen by cross-validation (``--select-rules``) on the
+synthetic ``paper`` preset generated with seed 1 (30 videos, 1280x720) with oracle detections,
+DIS ultrafast flow at 320 pixels; its ``training`` field records the details. Retrain it for
+another detector or real footage: ``N_t`` depends on the detector.
 """
 
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 from importlib import resources
 from pathlib import Path
 from typing import Any, ClassVar
 
+import numpy as np
 from pydantic import Field, field_validator
 
 from trackfw.errors import UserError
-from trackfw.records import ClassifierDecision, Detections, FrameData, VideoContext
+from trackfw.records import ClassifierDecision, Detections, FloatArray, FrameData, VideoContext
 from trackfw.stages import Classifier, StageParams
 from trackfw_plugins.classifiers.infoless_features import (
     DEFAULT_C_MAX,
@@ -33,6 +39,7 @@ from trackfw_plugins.classifiers.infoless_features import (
     FlowMethod,
     InfolessFeatureExtractor,
 )
+from trackfw_plugins.classifiers.online_rules import OnlineDecider, OnlineRules, model_rules
 from trackfw_plugins.classifiers.svm_model import SvmModel, load_model
 
 logger = logging.getLogger(__name__)
@@ -47,6 +54,13 @@ _FEATURE_DEFAULTS: dict[str, Any] = {
     "dis_preset": "ultrafast",
     "c_max": DEFAULT_C_MAX,
 }
+
+
+def shipped_model_path() -> Path:
+    """Path of the shipped model (a real file in both wheel and editable installs)."""
+    resource = resources.files("trackfw_plugins.classifiers").joinpath("models", SHIPPED_MODEL)
+    with resources.as_file(resource) as path:
+        return Path(path)
 
 
 def load_shipped_model() -> SvmModel:
@@ -76,11 +90,61 @@ class SvmParams(StageParams):
         description="Path of a trackfw-infoless-svm JSON model (trackfw train classifier);"
         " empty for the model shipped with trackfw.",
     )
-    threshold: float = Field(
-        default=0.5,
+    threshold: float | None = Field(
+        default=None,
         ge=0.0,
         le=1.0,
-        description="A frame is info-less when the Platt probability is at least this.",
+        description="Outside an interval, a frame is info-less when the Platt probability is at"
+        " least this; empty for the model's own enter_probability (0.5 if it records none).",
+    )
+    leave_threshold: float | None = Field(
+        default=None,
+        ge=0.0,
+        le=1.0,
+        description="Inside an interval, a frame stays info-less while the probability is at"
+        " least this (hysteresis, OURS); empty for the model's own leave_probability, or for"
+        " threshold when threshold is given.",
+    )
+    reanchor_after: int | None = Field(
+        default=None,
+        ge=0,
+        description="After this many consecutive info-less decisions on a steady camera, the"
+        " current frame becomes the reference of C_t (OURS; 0 never); empty for the model's own.",
+    )
+    reanchor_max_motion: float | None = Field(
+        default=None,
+        ge=0.0,
+        description="Re-anchor only when every M in the feature's history is at most this"
+        " (working-resolution pixels); empty for the model's own (no limit if it records none).",
+    )
+    turn_motion: float | None = Field(
+        default=None,
+        gt=0.0,
+        description="M (working-resolution pixels) from which a frame is part of a camera turn;"
+        " an interval begun by a turn stays open until a second turn has ended (OURS); empty"
+        " for the model's own (no turn latch if it records none).",
+    )
+    max_hold: int | None = Field(
+        default=None,
+        ge=0,
+        description="The most frames the turn latch keeps one interval open; empty for the"
+        " model's own (300 if it records none).",
+    )
+    reanchor_on_release: bool | None = Field(
+        default=None,
+        description="When the turn latch lets go on a frame still info-less that shows people,"
+        " make it the reference of C_t; empty for the model's own (true if it records none).",
+    )
+    latch_late_turns: bool | None = Field(
+        default=None,
+        description="An interval begun without a turn latches on its first turn; empty for the"
+        " model's own (true if it records none).",
+    )
+    reanchor_min_detections: int | None = Field(
+        default=None,
+        ge=0,
+        description="Re-anchor only when every N in the feature's history is at least this;"
+        " empty for the model's own (2 if it records none).",
     )
     flow: FlowMethod | None = Field(
         default=None,
@@ -115,6 +179,33 @@ class SvmParams(StageParams):
         return value
 
 
+def resolve_online_rules(model: SvmModel, params: Any, source: str = SHIPPED_MODEL) -> OnlineRules:
+    """The online rules to use: the parameters where given, else the model's record."""
+    recorded = model_rules(model, source)
+    enter = recorded.enter_probability if params.threshold is None else params.threshold
+    if params.leave_threshold is not None:
+        leave = params.leave_threshold
+    else:
+        leave = recorded.leave_probability if params.threshold is None else params.threshold
+    overrides = {
+        name: getattr(params, name)
+        for name in (
+            "reanchor_after",
+            "reanchor_max_motion",
+            "reanchor_min_detections",
+            "turn_motion",
+            "max_hold",
+            "reanchor_on_release",
+            "latch_late_turns",
+        )
+        if getattr(params, name) is not None
+    }
+    try:
+        return replace(recorded, enter_probability=enter, leave_probability=leave, **overrides)
+    except ValueError as error:
+        raise UserError(f"svm classifier parameters: {error}.") from None
+
+
 def resolve_feature_settings(model: SvmModel, params: Any) -> dict[str, Any]:
     """The feature settings to use: the parameters where given, else the model's record.
 
@@ -142,6 +233,12 @@ class SvmClassifier(Classifier):
     Params: ClassVar[type[StageParams]] = SvmParams
     uses_pixels = True
 
+    @classmethod
+    def resource_files(cls, params: StageParams) -> list[Path]:
+        """The shipped model when no ``model`` is given."""
+        assert isinstance(params, SvmParams)
+        return [] if params.model else [shipped_model_path()]
+
     def __init__(self, params: StageParams | None = None, **nested: Any) -> None:
         super().__init__(params, **nested)
         assert isinstance(self.params, SvmParams)
@@ -153,10 +250,17 @@ class SvmClassifier(Classifier):
             dis_preset=settings["dis_preset"],
             c_max=float(settings["c_max"]),
         )
+        self.rules = resolve_online_rules(
+            self.model, self.params, self.params.model or SHIPPED_MODEL
+        )
+        self.decider = OnlineDecider(self.rules, self.extractor.assembler)
+        #: The latest frame's feature; re-anchoring in feedback() looks at its motion history.
+        self._features: FloatArray = np.zeros(len(FEATURE_LAYOUT))
 
     def start(self, video: VideoContext) -> None:
-        """Forget the previous video's frames and reference."""
+        """Forget the previous video's frames, reference and interval state."""
         self.extractor.reset()
+        self.decider.reset()
 
     def classify(self, frame: FrameData, detections: Detections) -> ClassifierDecision:
         """Probability and label of ``frame``; needs its pixels."""
@@ -165,11 +269,12 @@ class SvmClassifier(Classifier):
         assert isinstance(self.params, SvmParams)
         features = self.extractor.update(frame.t, frame.image, detections.points)
         probability = float(self.model.probability(features)[0])
-        infoless = probability >= self.params.threshold
+        infoless = self.decider.decide(probability, features)
+        self._features = features
         # Provisional: feedback() replaces it with the engine's final decision.
-        self.extractor.mark_informative(frame.t, not infoless)
+        self.decider.settle(frame.t, infoless, features)
         return ClassifierDecision(probability=probability, infoless=infoless, features=features)
 
     def feedback(self, t: int, infoless: bool) -> None:
         """The engine's final decision for frame ``t``: it sets the reference of ``C_t``."""
-        self.extractor.mark_informative(t, not infoless)
+        self.decider.settle(t, infoless, self._features)

@@ -40,6 +40,7 @@ from trackfw_plugins.classifiers.infoless_features import (
     assemble_features,
     spread,
 )
+from trackfw_plugins.classifiers.online_rules import OnlineDecider, OnlineRules, model_rules
 from trackfw_plugins.classifiers.svm_model import SvmModel, fit_platt, platt_probability
 
 BoolArray = NDArray[np.bool_]
@@ -280,7 +281,7 @@ def training_set(
     return np.concatenate(features), np.concatenate(labels), np.concatenate(groups)
 
 
-def _pipeline(C: float, gamma: str | float) -> Any:
+def _pipeline(C: float, gamma: str | float, class_weight: str | None = "balanced") -> Any:
     from sklearn.pipeline import Pipeline
     from sklearn.preprocessing import StandardScaler
     from sklearn.svm import SVC
@@ -288,7 +289,7 @@ def _pipeline(C: float, gamma: str | float) -> Any:
     return Pipeline(
         [
             ("scaler", StandardScaler()),
-            ("svc", SVC(kernel="rbf", C=C, gamma=gamma, class_weight="balanced")),
+            ("svc", SVC(kernel="rbf", C=C, gamma=gamma, class_weight=class_weight)),
         ]
     )
 
@@ -303,6 +304,8 @@ def fit_model(
     reference: Reference = "gt",
     replay_rounds: int = 1,
     log: Callable[[str], None] | None = None,
+    rules: OnlineRules | None = None,
+    class_weight: str | None = "balanced",
 ) -> tuple[SvmModel, TrainingReport]:
     """Fit the info-less SVM on the videos' frames.
 
@@ -320,6 +323,9 @@ def fit_model(
             2011), which ground-truth features never show [OURS].
         replay_rounds: how many times the replay is repeated with the grown training set.
         log: receives progress lines.
+        rules: the online rules the replay applies (None: the plain 0.5 decision); the model
+            records them and the ``svm`` stage then applies them by default.
+        class_weight: the SVC's class weights: ``"balanced"`` (§6.3) or None (equal) [OURS].
 
     Returns:
         The model and the report with cross-validated (out-of-fold) frame scores on the
@@ -341,7 +347,7 @@ def fit_model(
         if grid:
             say(f"grid search over {len(GRID_C) * len(GRID_GAMMA)} settings, {folds} folds")
             search = GridSearchCV(
-                _pipeline(C, gamma),
+                _pipeline(C, gamma, class_weight),
                 {"svc__C": list(GRID_C), "svc__gamma": list(GRID_GAMMA)},
                 scoring="f1",
                 cv=splitter,
@@ -357,7 +363,15 @@ def fit_model(
         truth = (features, labels, groups)
         for round_number in range(replay_rounds if reference == "replay" else 0):
             extra_features, extra_labels, extra_groups = _replayed_rows(
-                videos, (features, labels, groups), truth, splitter, C, gamma, settings
+                videos,
+                (features, labels, groups),
+                truth,
+                splitter,
+                C,
+                gamma,
+                settings,
+                rules,
+                class_weight,
             )
             say(
                 f"replay round {round_number + 1} added {len(extra_labels)} frames whose C_t"
@@ -368,14 +382,14 @@ def fit_model(
             groups = np.concatenate([groups, extra_groups])
         say(f"cross-validating C={C}, gamma={gamma} over {folds} folds grouped by video")
         out_of_fold = cross_val_predict(
-            _pipeline(C, gamma),
+            _pipeline(C, gamma, class_weight),
             features,
             labels,
             groups=groups,
             cv=splitter,
             method="decision_function",
         )
-    final = _pipeline(C, gamma).fit(features, labels)
+    final = _pipeline(C, gamma, class_weight).fit(features, labels)
     if folds < 2:
         # One video: no held-out values; the sigmoid is then fitted in-sample (optimistic).
         out_of_fold = final.decision_function(features)
@@ -385,7 +399,7 @@ def fit_model(
         final.named_steps["svc"],
         platt=platt,
         feature_layout=FEATURE_LAYOUT,
-        features=settings.as_dict(),
+        features=settings.as_dict() | ({} if rules is None else {"online_rules": rules.as_dict()}),
     )
     original = sum(len(video.frames) for video in videos)
     probabilities = platt_probability(out_of_fold[:original], model.platt_a, model.platt_b)
@@ -403,6 +417,8 @@ def _replayed_rows(
     C: float,
     gamma: str | float,
     settings: FeatureSettings,
+    rules: OnlineRules | None = None,
+    class_weight: str | None = "balanced",
 ) -> tuple[FloatArray, IntArray, IntArray]:
     """Features seen online by fold models on their held-out videos, where they differ.
 
@@ -413,6 +429,8 @@ def _replayed_rows(
         splitter: the grouped cross-validation.
         C, gamma: SVM settings.
         settings: feature settings.
+        rules: the online rules of the replay.
+        class_weight: the SVC's class weights.
     """
     features, labels, groups = training
     true_features, true_labels, true_groups = truth
@@ -420,7 +438,7 @@ def _replayed_rows(
     row_labels: list[IntArray] = []
     row_groups: list[IntArray] = []
     for train_rows, test_rows in splitter.split(features, labels, groups):
-        fold = _pipeline(C, gamma).fit(features[train_rows], labels[train_rows])
+        fold = _pipeline(C, gamma, class_weight).fit(features[train_rows], labels[train_rows])
         # In-sample sigmoid: only the 0.5 crossing matters for the replay.
         platt = fit_platt(fold.decision_function(features[train_rows]), labels[train_rows])
         fold_model = SvmModel.from_sklearn(
@@ -431,50 +449,154 @@ def _replayed_rows(
             features=settings.as_dict(),
         )
         for index in np.unique(groups[test_rows]):
-            _, _, seen = replay(fold_model, videos[int(index)], c_max=settings.c_max)
+            _, _, seen, latched = replay_with_latch(
+                fold_model, videos[int(index)], c_max=settings.c_max, rules=rules or OnlineRules()
+            )
             own = true_groups == index
-            differs = np.any(seen != true_features[own], axis=1)
+            # Frames the turn latch decided teach nothing: the SVM's answer was not used there.
+            differs = np.any(seen != true_features[own], axis=1) & ~latched
             rows.append(seen[differs])
             row_labels.append(true_labels[own][differs])
             row_groups.append(true_groups[own][differs])
     return np.concatenate(rows), np.concatenate(row_labels), np.concatenate(row_groups)
 
 
+#: Candidate online rules that :func:`select_rules` compares [OURS]: the paper's plain 0.5
+#: decision, re-anchoring after 30 info-less frames (alone and with hysteresis), and the turn
+#: latch (turns from M_t = 8 or 12 pixels at width 320), alone, with re-anchoring and with a
+#: higher entry probability.
+RULE_CANDIDATES: tuple[OnlineRules, ...] = (
+    OnlineRules(),
+    OnlineRules(0.5, 0.5, 30),
+    OnlineRules(0.5, 0.35, 30),
+    OnlineRules(turn_motion=8.0),
+    OnlineRules(0.5, 0.5, 30, turn_motion=8.0),
+    OnlineRules(0.7, 0.7, 30, turn_motion=8.0),
+    OnlineRules(0.5, 0.5, 30, turn_motion=12.0),
+)
+
+
+def select_rules(
+    videos: Sequence[VideoMeasurements],
+    settings: FeatureSettings,
+    candidates: Sequence[OnlineRules] = RULE_CANDIDATES,
+    folds: int = 3,
+    seed: int = 0,
+    replay_rounds: int = 1,
+    log: Callable[[str], None] | None = None,
+) -> tuple[OnlineRules, list[dict[str, Any]]]:
+    """The candidate with the best online F1 by cross-validation over the training videos.
+
+    For each candidate and each fold (grouped by video), a model is trained with
+    ``reference="replay"`` under those rules on the other folds, and the held-out videos are
+    replayed online with them, exactly as the ``svm`` stage runs; the pooled frame F1 decides
+    (ties: fewer misclassified frames, then the earlier candidate). No test video is seen.
+
+    Returns:
+        The chosen rules and one row per candidate (``rules`` and the pooled scores).
+    """
+    from sklearn.model_selection import GroupKFold
+
+    say = log or (lambda line: None)
+    folds = min(folds, len(videos))
+    if folds < 2:
+        raise UserError("selecting the online rules needs at least two training videos.")
+    splitter = GroupKFold(n_splits=folds, shuffle=True, random_state=seed)
+    split_rows = list(splitter.split(np.zeros(len(videos)), groups=np.arange(len(videos))))
+    rows: list[dict[str, Any]] = []
+    best: tuple[float, int] | None = None
+    chosen = candidates[0]
+    for rules in candidates:
+        scores = FrameScores()
+        for train_rows, test_rows in split_rows:
+            model, _ = fit_model(
+                [videos[i] for i in train_rows],
+                settings,
+                seed=seed,
+                reference="replay",
+                replay_rounds=replay_rounds,
+                rules=rules,
+            )
+            for i in test_rows:
+                _, decisions = classify_online(model, videos[i], rules=rules)
+                scores += FrameScores.of(decisions, videos[i].labels)
+        f1 = 0.0 if math.isnan(scores.f1) else scores.f1
+        rows.append({"rules": rules.as_dict()} | scores.as_dict())
+        say(f"rules {rules.as_dict()}: cross-validated online F1 {f1:.3f}")
+        key = (f1, -scores.misclassified)
+        if best is None or key > best:
+            best, chosen = key, rules
+    return chosen, rows
+
+
 # -------------------------------------------------------------------------------- evaluation
 
 
 def classify_online(
-    model: SvmModel, video: VideoMeasurements, threshold: float = 0.5, c_max: float | None = None
+    model: SvmModel,
+    video: VideoMeasurements,
+    threshold: float | None = None,
+    c_max: float | None = None,
+    rules: OnlineRules | None = None,
 ) -> tuple[FloatArray, BoolArray]:
     """Replay the ``svm`` stage over a video's measurements.
 
     The classifier's own decisions choose the reference frame of ``C_t``; the first frame is
     always informative, as in the engine.
 
+    Args:
+        model: the SVM.
+        video: the measurements.
+        threshold: a plain decision threshold, used when ``rules`` is None.
+        c_max: clip of ``C_t``; None for the model's.
+        rules: the online rules; None with no ``threshold`` for the model's own (as the
+            ``svm`` stage by default).
+
     Returns:
         ``(T,)`` probabilities and ``(T,)`` info-less decisions.
     """
-    probabilities, decisions, _ = replay(model, video, threshold, c_max)
+    probabilities, decisions, _ = replay(model, video, threshold, c_max, rules)
     return probabilities, decisions
 
 
 def replay(
-    model: SvmModel, video: VideoMeasurements, threshold: float = 0.5, c_max: float | None = None
+    model: SvmModel,
+    video: VideoMeasurements,
+    threshold: float | None = None,
+    c_max: float | None = None,
+    rules: OnlineRules | None = None,
 ) -> tuple[FloatArray, BoolArray, FloatArray]:
     """:func:`classify_online` that also returns the ``(T, 11)`` features the stage saw."""
+    probabilities, decisions, features, _ = replay_with_latch(model, video, threshold, c_max, rules)
+    return probabilities, decisions, features
+
+
+def replay_with_latch(
+    model: SvmModel,
+    video: VideoMeasurements,
+    threshold: float | None = None,
+    c_max: float | None = None,
+    rules: OnlineRules | None = None,
+) -> tuple[FloatArray, BoolArray, FloatArray, BoolArray]:
+    """:func:`replay` plus a ``(T,)`` mask of the frames the turn latch decided (not the SVM)."""
     limit = float(model.features.get("c_max", DEFAULT_C_MAX)) if c_max is None else c_max
     assembler = FeatureAssembler(limit)
+    if rules is None:
+        rules = model_rules(model) if threshold is None else OnlineRules(threshold, threshold)
+    decider = OnlineDecider(rules, assembler)
     probabilities = np.zeros(len(video.frames))
     decisions = np.zeros(len(video.frames), dtype=bool)
+    latched = np.zeros(len(video.frames), dtype=bool)
     features = np.zeros((len(video.frames), len(FEATURE_LAYOUT)))
     for row, t in enumerate(video.frames):
         features[row] = assembler.push(
             int(t), video.motion[row], video.counts[row], video.spreads[row]
         )
         probabilities[row] = model.probability(features[row])[0]
-        decisions[row] = row > 0 and probabilities[row] >= threshold
-        assembler.mark_informative(int(t), not decisions[row])
-    return probabilities, decisions, features
+        decisions[row] = row > 0 and decider.decide(float(probabilities[row]), features[row])
+        latched[row] = row > 0 and decider.holding
+        decider.settle(int(t), bool(decisions[row]), features[row])
+    return probabilities, decisions, features, latched
 
 
 def flow_threshold_online(

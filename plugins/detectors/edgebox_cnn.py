@@ -136,6 +136,12 @@ class EdgeBoxCnnDetector(Detector):
     Params = EdgeBoxCnnParams
     uses_pixels = True
 
+    @classmethod
+    def resource_files(cls, params: StageParams) -> list[Path]:
+        """The shipped head classifier when no ``model`` is given."""
+        assert isinstance(params, EdgeBoxCnnParams)
+        return [] if params.model else [shipped_model_path()]
+
     def __init__(self, params: EdgeBoxCnnParams | None = None) -> None:
         super().__init__(params)
         assert isinstance(self.params, EdgeBoxCnnParams)

@@ -106,3 +106,49 @@ def test_a_damaged_cache_file_is_a_miss_and_is_rewritten(
         )
         is not None
     )
+
+
+def test_key_follows_files_a_stage_reads_without_naming_them(small_dataset, tmp_path: Path) -> None:
+    from types import ModuleType
+
+    from trackfw.hookspecs import hookimpl
+    from trackfw.records import ClassifierDecision
+    from trackfw.stages import Classifier, StageParams
+
+    shipped = tmp_path / "shipped.json"
+    shipped.write_text("{}")
+
+    class ShippedModelClassifier(Classifier):
+        """Reads a model file that no parameter names (like a shipped model)."""
+
+        name = "shipped-model"
+
+        @classmethod
+        def resource_files(cls, params: StageParams) -> list[Path]:
+            return [shipped]
+
+        def classify(self, frame, detections):  # type: ignore[no-untyped-def]
+            return ClassifierDecision(0.0, False)
+
+    module = ModuleType("shipped_plugin")
+
+    @hookimpl
+    def trackfw_register_stages(registry):  # type: ignore[no-untyped-def]
+        registry.add_classifier(ShippedModelClassifier)
+
+    module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
+    registry = load_registry(extra_modules=[("shipped", module)])
+    spec = {
+        **PIPELINE,
+        "stages": {
+            **PIPELINE["stages"],
+            "detector": {"type": "oracle"},
+            "classifier": {"type": "shipped-model"},
+        },
+    }
+    pipeline = validate_pipeline(spec, registry)
+    video = load_video(small_dataset(count=1) / "v0")
+    before = cache_key(pipeline, video, registry)
+    assert cache_key(pipeline, video, registry) == before
+    shipped.write_text('{"retrained": true}')
+    assert cache_key(pipeline, video, registry) != before

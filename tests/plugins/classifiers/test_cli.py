@@ -101,6 +101,27 @@ def test_unknown_video_and_detector_are_user_errors(dataset: Path, tmp_path: Pat
         train_classifier(dataset, tmp_path / "m.json", flow="lucas", echo=lambda _: None)
 
 
+def test_rule_options_are_recorded_and_checked(dataset: Path, tmp_path: Path) -> None:
+    app = typer.Typer()
+    register(app)
+    out = tmp_path / "rules.json"
+    arguments = [
+        "--dataset", str(dataset), "--out", str(out), "--detector-param", "source=heads",
+        "--reference", "replay", "--turn-motion", "8", "--reanchor-after", "20",
+        "--enter-probability", "0.6", "--leave-probability", "0.4",
+    ]  # fmt: skip
+    result = CliRunner().invoke(app, arguments)
+    assert result.exit_code == 0, result.output
+    recorded = load_model(out).features["online_rules"]
+    assert recorded["turn_motion"] == 8.0 and recorded["reanchor_after"] == 20
+    assert (recorded["enter_probability"], recorded["leave_probability"]) == (0.6, 0.4)
+    assert load_model(out).training["online_rules"] == recorded
+    from trackfw_plugins.classifiers.cli import train_classifier
+
+    with pytest.raises(UserError, match="online rule"):
+        train_classifier(dataset, tmp_path / "m.json", leave_probability=0.9, echo=lambda _: None)
+
+
 def test_parse_assignments() -> None:
     assert parse_assignments(["a=1", "b=true", "c=x y"], "--p") == {"a": 1, "b": True, "c": "x y"}
     with pytest.raises(UserError, match="KEY=VALUE"):
