@@ -12,6 +12,13 @@ batch is the *last* axis (arrays (K, N, B)), so that sums over K or N are contig
 Because the regularised fit is linear in the virtual targets, one TPS update is a single
 (K, K) @ (K, 2B) product. Sinkhorn is run on scaling vectors (H = diag(a) E diag(b)); every data
 set stops its own Sinkhorn iteration by the code's rule, so batched and one-at-a-time runs agree.
+
+Speed (one core, ~1000 data sets of 8-9 points): the loop is a few hundred numpy calls per
+temperature level, so the (K, N, B) and (K, B) arrays are preallocated and written with ``out=``;
+every array keeps the batch axis innermost and contiguous (einsum over a boolean-index copy,
+whose batch axis ends up outermost, is several times slower); full-size ufuncs get no scalar
+or (B,)-vector operands (numpy's broadcast paths for those are slow); and H itself is formed
+only once, after the last level.
 """
 
 from __future__ import annotations
@@ -22,7 +29,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import DTypeLike, NDArray
 from pydantic import BaseModel, ConfigDict, Field
 
 from trackfw_plugins.maths.thin_plate import FloatArray, TpsBasis, homogeneous, tps_kernel
@@ -252,6 +259,45 @@ def threshold_matches(correspondence: FloatArray, threshold: float = 0.5) -> Int
     return np.stack([template_index[keep], best_column[keep]], axis=1).astype(np.int64)
 
 
+class _SinkhornWorkspace:
+    """Buffers of :func:`_sinkhorn` for one (K, N, B) shape, reused across its many calls.
+
+    Sweep s writes its scalings into slab s of a history, so a data set that meets the
+    stopping test needs no copy when it stops: its sweep is noted and its scalings are
+    gathered once, at the end.
+    """
+
+    def __init__(self, rows: int, columns: int, batch: int, sweeps: int, dtype: DTypeLike) -> None:
+        self.shape = (rows, columns, batch)
+        self.row_history: FloatArray = np.empty((sweeps + 1, rows, batch), dtype=dtype)
+        self.column_history: FloatArray = np.empty((sweeps + 1, columns, batch), dtype=dtype)
+        self.sums: FloatArray = np.empty((rows + columns, batch), dtype=dtype)
+        self.error: FloatArray = np.empty(batch, dtype=dtype)
+        self.stopping: NDArray[np.bool_] = np.empty(batch, dtype=bool)
+        # Flat index of entry (p, b) within one history slab, for the final gather.
+        self.row_base: IntArray = np.arange(rows * batch).reshape(rows, batch)
+        self.column_base: IntArray = np.arange(columns * batch).reshape(columns, batch)
+
+
+def _gather(history: FloatArray, slab: IntArray, base: IntArray | None = None) -> FloatArray:
+    """``history[slab[b], :, b]`` for every column b, as a (rows, B) array.
+
+    Args:
+        history: (S, rows, B) slabs.
+        slab: (B,) slab of each column.
+        base: (rows, B) flat index of each entry within a slab (computed when None).
+
+    >>> history = np.arange(12.0).reshape(3, 2, 2)
+    >>> _gather(history, np.array([2, 0])).tolist()
+    [[8.0, 1.0], [10.0, 3.0]]
+    """
+    _, rows, width = history.shape
+    if base is None:
+        base = np.arange(rows * width).reshape(rows, width)
+    # One take on flat indices is several times faster than the mixed fancy index.
+    return np.take(history.reshape(-1), base + slab * (rows * width))
+
+
 def _sinkhorn(
     affinity: FloatArray,
     row_slack: FloatArray,
@@ -259,6 +305,7 @@ def _sinkhorn(
     max_sweeps: int,
     tolerance: float,
     initial_row_scale: float,
+    workspace: _SinkhornWorkspace | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Scaling vectors of the two-way normalisation with constant outlier slack.
 
@@ -270,50 +317,64 @@ def _sinkhorn(
         tolerance: per data set, stop once mean((s-1)², (t-1)²) < tolerance².
         initial_row_scale: factor that turns E into the code's raw m (T^-1/2); it only matters
             for the first sweep's stopping test, which is not scale-invariant.
+        workspace: buffers for this shape and ``max_sweeps`` (allocated when None).
 
     Returns:
         Row scaling (K, B) and column scaling (N, B): H = a_p E_pq b_q.
     """
     rows, columns, batch = affinity.shape
-    row_scale = np.full((rows, batch), initial_row_scale, dtype=affinity.dtype)
-    column_scale = np.ones((columns, batch), dtype=affinity.dtype)
+    dtype = affinity.dtype
+    if workspace is None or workspace.shape != affinity.shape:
+        workspace = _SinkhornWorkspace(rows, columns, batch, max_sweeps, dtype)
+    row_history, column_history = workspace.row_history, workspace.column_history
+    sums, error, stopping = workspace.sums, workspace.error, workspace.stopping
+    row_sums, column_sums = sums[:rows], sums[rows:]
+    row_history[0] = initial_row_scale
+    column_history[0] = 1.0
     limit = tolerance * tolerance * (rows + columns)
-    # A data set that meets the test has its scalings saved; it keeps riding along in the
-    # arrays (its later values are discarded) until half of them are done, and then the
-    # arrays are compacted. That keeps late sweeps cheap without a copy per sweep.
-    index = np.arange(batch)  # data set of each column of the working arrays
-    active = np.ones(batch, dtype=bool)  # not yet stopped, per working column
-    sub_affinity, sub_row, sub_column = affinity, row_scale, column_scale
-    for _ in range(max_sweeps):
+    # A data set that meets the test keeps riding along (its later values are ignored): only
+    # its stopping sweep is noted, and its scalings are read from that sweep's history slab at
+    # the end. Most data sets stop in the last few sweeps, so compacting the arrays, or copying
+    # columns out as they stop, costs more than the sweeps it would save.
+    stopped_at = np.full(batch, max_sweeps)
+    active = np.ones(batch, dtype=bool)
+    # Slack as full (K, B) and (N, B) arrays: adding a (B,) vector across rows is a slow
+    # numpy path, and the slack is added once per sweep.
+    row_slack = np.repeat(row_slack[None, :].astype(dtype, copy=False), rows, axis=0)
+    column_slack = np.repeat(column_slack[None, :].astype(dtype, copy=False), columns, axis=0)
+    for sweep in range(1, max_sweeps + 1):
+        previous_row, previous_column = row_history[sweep - 1], column_history[sweep - 1]
         # Row p's slack is row_slack·a_p (never column-normalised); column q's is
         # column_slack·b_q (never row-normalised).
-        row_sums = sub_row * (np.einsum("knb,nb->kb", sub_affinity, sub_column) + row_slack)
-        sub_row = sub_row / row_sums
-        column_sums = sub_column * (np.einsum("knb,kb->nb", sub_affinity, sub_row) + column_slack)
-        sub_column = sub_column / column_sums
-        row_sums -= 1.0
-        column_sums -= 1.0
-        error = np.einsum("kb,kb->b", row_sums, row_sums) + np.einsum(
-            "nb,nb->b", column_sums, column_sums
-        )
-        stopping = active & (error < limit)
+        if sweep == 1:
+            # The column scaling starts at 1, so the first row sums are plain sums.
+            np.add.reduce(affinity, axis=1, out=row_sums)
+        else:
+            np.einsum("knb,nb->kb", affinity, previous_column, out=row_sums)
+        row_sums += row_slack
+        row_sums *= previous_row
+        new_row = np.divide(previous_row, row_sums, out=row_history[sweep])
+        np.einsum("knb,kb->nb", affinity, new_row, out=column_sums)
+        column_sums += column_slack
+        column_sums *= previous_column
+        np.divide(previous_column, column_sums, out=column_history[sweep])
+        # Stopping test on the K+N contiguous rows at once (an einsum would reduce over the
+        # strided axis, which is slow).
+        sums -= 1.0
+        np.square(sums, out=sums)
+        np.add.reduce(sums, axis=0, out=error)
+        np.less(error, limit, out=stopping)
+        stopping &= active
         if not stopping.any():
             continue
-        row_scale[:, index[stopping]] = sub_row[:, stopping]
-        column_scale[:, index[stopping]] = sub_column[:, stopping]
+        np.putmask(stopped_at, stopping, sweep)
         active &= ~stopping
-        remaining = int(active.sum())
-        if remaining == 0:
-            return row_scale, column_scale
-        if 2 * remaining <= active.size:
-            sub_affinity = sub_affinity[:, :, active]
-            sub_row, sub_column = sub_row[:, active], sub_column[:, active]
-            row_slack, column_slack = row_slack[active], column_slack[active]
-            index = index[active]
-            active = np.ones(remaining, dtype=bool)
-    row_scale[:, index[active]] = sub_row[:, active]
-    column_scale[:, index[active]] = sub_column[:, active]
-    return row_scale, column_scale
+        if not active.any():
+            break
+    return (
+        _gather(row_history, stopped_at, workspace.row_base),
+        _gather(column_history, stopped_at, workspace.column_base),
+    )
 
 
 def _anneal(
@@ -357,10 +418,19 @@ def _anneal(
     warped_x = np.ascontiguousarray(stacked_template[:, :, 0].T)  # (K, B)
     warped_y = np.ascontiguousarray(stacked_template[:, :, 1].T)
     previous_h: FloatArray | None = None
-    h = np.zeros((count, columns, batch), dtype=dtype)
     targets_x, targets_y = warped_x, warped_y
     noise_scale = 0.001 / count
     exponent_cap = 80.0 if dtype == np.float32 else 700.0
+    # The (K, N, B) arrays are reused across iterations (they shrink only with early_stop).
+    affinity = np.empty((count, columns, batch), dtype=dtype)
+    other = np.empty_like(affinity)
+    # A full array rather than a scalar: numpy's minimum with a scalar operand is not
+    # vectorised and costs several passes.
+    cap = np.full_like(affinity, exponent_cap)
+    row_scale = np.ones((count, batch), dtype=dtype)
+    column_scale = np.ones((columns, batch), dtype=dtype)
+    workspace = _SinkhornWorkspace(count, columns, batch, settings.sinkhorn_maxit, dtype)
+    last_level = len(temperatures) - 1
     for level, temperature_value in enumerate(temperatures):
         temperature = float(temperature_value)
         inverse_root = 1.0 / math.sqrt(temperature)
@@ -371,16 +441,18 @@ def _anneal(
         # Data sets are sorted by template, so each template owns one contiguous slice.
         bounds = np.searchsorted(alive_owner, np.arange(len(templates) + 1))
         for _ in range(settings.perT_maxit):
-            difference = warped_x[:, None, :] * inverse_root - scaled_x[None, :, :]
-            np.multiply(difference, difference, out=difference)
-            other = warped_y[:, None, :] * inverse_root - scaled_y[None, :, :]
+            # (data - warped)² equals (warped - data)² exactly; numpy broadcasts faster when
+            # the operand that varies along N comes first.
+            np.subtract(scaled_x[None, :, :], (warped_x * inverse_root)[:, None, :], out=affinity)
+            np.multiply(affinity, affinity, out=affinity)
+            np.subtract(scaled_y[None, :, :], (warped_y * inverse_root)[:, None, :], out=other)
             np.multiply(other, other, out=other)
-            difference += other
+            affinity += other
             # Capping d²/T keeps exp() out of subnormal numbers, which are very slow on x86;
             # exp(-cap) is far below anything that can change H.
-            np.minimum(difference, exponent_cap, out=difference)
-            np.negative(difference, out=difference)
-            affinity = np.exp(difference, out=difference)
+            np.minimum(affinity, cap[:, :, : affinity.shape[2]], out=affinity)
+            np.negative(affinity, out=affinity)
+            np.exp(affinity, out=affinity)
             if rng is not None:
                 affinity += (
                     rng.standard_normal(affinity.shape) * (noise_scale * np.sqrt(temperature))
@@ -393,6 +465,7 @@ def _anneal(
                     settings.sinkhorn_maxit,
                     settings.sinkhorn_tol,
                     inverse_root,
+                    workspace,
                 )
             else:
                 row_scale = np.ones((count, affinity.shape[2]), dtype=dtype)
@@ -402,9 +475,13 @@ def _anneal(
             weighted_x = np.einsum("knb,nb->kb", affinity, column_scale * data_x)
             weighted_y = np.einsum("knb,nb->kb", affinity, column_scale * data_y)
             usable = row_scale * weight_sum >= _ROW_SUM_FLOOR
-            safe_sum = np.where(usable, weight_sum, 1.0)
-            targets_x = np.where(usable, weighted_x / safe_sum, warped_x)
-            targets_y = np.where(usable, weighted_y / safe_sum, warped_y)
+            if usable.all():
+                targets_x = np.divide(weighted_x, weight_sum, out=weighted_x)
+                targets_y = np.divide(weighted_y, weight_sum, out=weighted_y)
+            else:
+                safe_sum = np.where(usable, weight_sum, 1.0)
+                targets_x = np.where(usable, weighted_x / safe_sum, warped_x)
+                targets_y = np.where(usable, weighted_y / safe_sum, warped_y)
             warped_x = np.empty_like(targets_x)
             warped_y = np.empty_like(targets_y)
             for index, (_, _, _, warp, warp_offset) in enumerate(operators):
@@ -415,10 +492,13 @@ def _anneal(
                 moved = warp[level] @ np.concatenate(
                     [targets_x[:, first:last], targets_y[:, first:last]], axis=1
                 )
-                warped_x[:, first:last] = warp_offset[level][:, 0:1] + moved[:, :width]
-                warped_y[:, first:last] = warp_offset[level][:, 1:2] + moved[:, width:]
+                np.add(warp_offset[level][:, 0:1], moved[:, :width], out=warped_x[:, first:last])
+                np.add(warp_offset[level][:, 1:2], moved[:, width:], out=warped_y[:, first:last])
+        if not settings.early_stop:
+            # H itself is only needed at the end (the loop carries the scalings).
+            continue
         h = row_scale[:, None, :] * affinity * column_scale[None, :, :]
-        if settings.early_stop and level + 1 < len(temperatures):
+        if level < last_level:
             if previous_h is not None:
                 change = np.abs(h - previous_h).max(axis=(0, 1))
                 finished = change < settings.early_stop_tol
@@ -427,16 +507,24 @@ def _anneal(
                     final_h[done] = np.moveaxis(h[:, :, finished], 2, 0)
                     final_targets[done, :, 0] = targets_x[:, finished].T
                     final_targets[done, :, 1] = targets_y[:, finished].T
-                    keep = ~finished
+                    keep = np.flatnonzero(~finished)
                     alive, alive_owner = alive[keep], alive_owner[keep]
                     if alive.size == 0:
                         return final_h, final_targets
-                    h = h[:, :, keep]
-                    data_x, data_y = data_x[:, keep], data_y[:, keep]
-                    warped_x, warped_y = warped_x[:, keep], warped_y[:, keep]
+                    # take() keeps the batch axis innermost and contiguous (a boolean index
+                    # on the last axis would not, which slows every later einsum).
+                    h = np.take(h, keep, axis=2)
+                    data_x, data_y = np.take(data_x, keep, axis=1), np.take(data_y, keep, axis=1)
+                    warped_x = np.take(warped_x, keep, axis=1)
+                    warped_y = np.take(warped_y, keep, axis=1)
                     outlier_mass = outlier_mass[keep]
+                    affinity = np.empty((count, columns, alive.size), dtype=dtype)
+                    other = np.empty_like(affinity)
+                    workspace = _SinkhornWorkspace(
+                        count, columns, alive.size, settings.sinkhorn_maxit, dtype
+                    )
             previous_h = h
-    final_h[alive] = np.moveaxis(h, 2, 0)
+    final_h[alive] = np.moveaxis(row_scale[:, None, :] * affinity * column_scale[None, :, :], 2, 0)
     final_targets[alive, :, 0] = targets_x.T
     final_targets[alive, :, 1] = targets_y.T
     return final_h, final_targets

@@ -5,8 +5,8 @@ AR order), ``V`` (N, 2) the detections on frame b, and an optional appearance di
 (K, N). Steps: every 4-subset of V spans an inclusive bounding box whose members form a window
 W; windows are deduplicated (bitmasks) and kept when ceil(0.9K) <= |W| <= floor(1.2K)
 (:func:`build_windows`, shared by all candidates); then hull shape prescreen, TPS-RPM per
-window (batched by window size and across candidates), post-RPM prune, cost
-ψ = φ + λ1 (K − d_W) + λ2 E_a, best window, and the §4.6 fallback chain.
+window (batched by window size and across candidates; identical candidates share their runs),
+post-RPM prune, cost ψ = φ + λ1 (K − d_W) + λ2 E_a, best window, and the §4.6 fallback chain.
 
 Shape checks (both hull cuts) can be evaluated lazily (default): all windows are registered,
 then the windows are visited in increasing ψ and the first that passes both cuts wins. That is
@@ -244,6 +244,18 @@ class _Registered:
     cost: FloatArray = field(default_factory=lambda: np.zeros(0))
     appearance: FloatArray = field(default_factory=lambda: np.zeros(0))
     count: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    def copy(self) -> _Registered:
+        """An independent copy (stores are mutated by the fallbacks)."""
+        return _Registered(
+            ran=self.ran.copy(),
+            matched=self.matched.copy(),
+            bending=self.bending.copy(),
+            warped=self.warped.copy(),
+            cost=self.cost.copy(),
+            appearance=self.appearance.copy(),
+            count=self.count.copy(),
+        )
 
     @classmethod
     def empty(cls, windows: int, size: int) -> _Registered:
@@ -529,7 +541,23 @@ def associate_candidates(
             prescreens[index] = passing
             needed[index] = passing
     stores = [_Registered.empty(window_count, count) for _ in templates]
-    _register(templates, detections, windows.members, needed, stores)
+    # Identical candidates (AR orders that agree) share one set of RPM runs. With noise_seed
+    # the noise is drawn per batch, so there every candidate keeps its own runs.
+    source = _first_copies(predicted_sets) if params.rpm.noise_seed is None else None
+    if source is None:
+        _register(templates, detections, windows.members, needed, stores)
+    else:
+        unique = [index for index, first in enumerate(source) if first == index]
+        _register(
+            [templates[i] for i in unique],
+            detections,
+            windows.members,
+            [needed[i] for i in unique],
+            [stores[i] for i in unique],
+        )
+        for index, first in enumerate(source):
+            if first != index:
+                stores[index] = stores[first].copy()
     for store in stores:
         store.finish(appearance, params)
     return [
@@ -538,6 +566,26 @@ def associate_candidates(
             templates, stores, prescreens, caches, strict=True
         )
     ]
+
+
+def _first_copies(point_sets: Sequence[FloatArray]) -> list[int]:
+    """Index of the first point set equal to each one (its own index when it is the first).
+
+    >>> _first_copies([np.zeros((2, 2)), np.ones((2, 2)), np.zeros((2, 2))])
+    [0, 1, 0]
+    """
+    first: list[int] = []
+    for index, points in enumerate(point_sets):
+        match = next(
+            (
+                earlier
+                for earlier in range(index)
+                if first[earlier] == earlier and np.array_equal(points, point_sets[earlier])
+            ),
+            index,
+        )
+        first.append(match)
+    return first
 
 
 def associate_window(

@@ -12,6 +12,8 @@ from trackfw_plugins.maths.thin_plate import TpsBasis, tps_kernel
 from trackfw_plugins.maths.tps_rpm import (
     TpsRpmSettings,
     TpsRpmTemplate,
+    _sinkhorn,
+    _SinkhornWorkspace,
     code_temperatures,
     normalise_points,
     threshold_matches,
@@ -286,3 +288,79 @@ def test_chui_rangarajan_correct_correspondence(
     if not path.is_file():
         pytest.skip(f"{path} not found")
     assert _correct_rate(path) >= minimum
+
+
+@pytest.mark.parametrize(
+    ("precision", "energies"),
+    [
+        ("float32", [0.0, 0.601489085, 1.345115419, 0.457005496, 0.747012388]),
+        ("float64", [0.0, 0.601489217, 1.345115504, 0.457005479, 0.747012398]),
+    ],
+)
+def test_multi_batch_is_pinned_to_the_reference_implementation(
+    precision: str, energies: list[float]
+) -> None:
+    # Outputs of the implementation before the speed work (November 2026), pinned so that
+    # optimisations of the annealing loop keep the matches and φ to 1e-6.
+    rng = np.random.default_rng(7)
+    templates = [rng.uniform(0, 300, (8, 2)) for _ in range(2)]
+    data = rng.uniform(0, 300, (5, 9, 2))
+    data[0, :8] = templates[0] * 1.1 + 20
+    settings = TpsRpmSettings(precision=precision)
+    outputs = tps_rpm_multi_batch(
+        [TpsRpmTemplate(points, settings) for points in templates], np.array([0, 0, 1, 1, 1]), data
+    )
+    assert outputs.matched.tolist() == [
+        [0, 1, 2, 3, 4, 5, 6, 7],
+        [5, 6, 0, 1, 3, 8, 2, 7],
+        [0, 8, -1, 5, 3, 2, 1, 7],
+        [7, 3, 6, -1, 5, 8, 0, -1],
+        [3, 4, 2, 0, 8, 5, 7, 1],
+    ]
+    np.testing.assert_allclose(outputs.bending_energy, energies, rtol=0, atol=1e-6)
+
+
+def _plain_sinkhorn(
+    affinity: np.ndarray,
+    row_slack: float,
+    column_slack: float,
+    max_sweeps: int,
+    tolerance: float,
+    initial_row_scale: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One data set, written as the code's loop: scalings after the stopping sweep."""
+    rows, columns = affinity.shape
+    row_scale = np.full(rows, initial_row_scale)
+    column_scale = np.ones(columns)
+    for _ in range(max_sweeps):
+        row_sums = row_scale * (affinity @ column_scale + row_slack)
+        row_scale = row_scale / row_sums
+        column_sums = column_scale * (affinity.T @ row_scale + column_slack)
+        column_scale = column_scale / column_sums
+        error = np.sum((row_sums - 1) ** 2) + np.sum((column_sums - 1) ** 2)
+        if error < tolerance * tolerance * (rows + columns):
+            break
+    return row_scale, column_scale
+
+
+@pytest.mark.parametrize("with_workspace", [False, True])
+def test_batched_sinkhorn_equals_one_data_set_at_a_time(with_workspace: bool) -> None:
+    # Data sets of very different sharpness stop at sweeps 2 to 8, which exercises the
+    # history slabs and the final gather of each data set's stopping sweep.
+    rng = np.random.default_rng(3)
+    rows, columns, batch = 5, 6, 40
+    sharpness = np.linspace(0.2, 30.0, batch)
+    affinity = np.exp(-sharpness * rng.uniform(0, 1, (rows, columns, batch)))
+    row_slack = rng.uniform(0.05, 0.3, batch)
+    column_slack = rng.uniform(0.05, 0.3, batch)
+    workspace = _SinkhornWorkspace(rows, columns, batch, 10, np.float64) if with_workspace else None
+    for _ in range(2):  # a reused workspace must not leak state between calls
+        row_scale, column_scale = _sinkhorn(
+            affinity, row_slack, column_slack, 10, 0.05, 1.7, workspace
+        )
+        for index in range(batch):
+            expected_row, expected_column = _plain_sinkhorn(
+                affinity[:, :, index], row_slack[index], column_slack[index], 10, 0.05, 1.7
+            )
+            np.testing.assert_allclose(row_scale[:, index], expected_row, rtol=1e-12)
+            np.testing.assert_allclose(column_scale[:, index], expected_column, rtol=1e-12)

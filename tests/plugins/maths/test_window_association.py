@@ -211,3 +211,77 @@ def test_select_candidate_breaks_ties_towards_the_first() -> None:
     assert select_candidate([make(0.2), make(0.2)]) == 0
     with pytest.raises(ValueError, match="no candidates"):
         select_candidate([])
+
+
+def _pinned_scene(seed: int, count: int) -> tuple[list[np.ndarray], np.ndarray, np.ndarray | None]:
+    predicted, detections, _ = _pattern_scene(count, seed)
+    rng = np.random.default_rng(seed + 100)
+    candidates = [predicted + rng.normal(0, 8, predicted.shape) for _ in range(3)]
+    appearance = rng.uniform(0, 1, (8, count)) if seed % 2 else None
+    return candidates, detections, appearance
+
+
+# Outputs of the implementation before the speed work (November 2026), pinned so that later
+# optimisations provably keep the default path's results: (cost, matched rows, window) per
+# candidate for seeded scenes, both precisions, lazy and eager shape checks.
+_PINNED = {
+    (1, 13, True): (
+        [0, 1, 3, 5, 6, 7, 9, 11, 12],
+        [[6, 0, 9, 7, 11, 12, 5, 3]] * 3,
+        [0.155154604, 0.139569362, 0.142398004],
+        [0.155154601, 0.139569364, 0.142398008],
+    ),
+    (2, 14, True): (
+        None,
+        [[1, 3, 13, 6, 2, 5, 12, 11]] * 3,
+        [0.013946518, 0.014086914, 0.017944128],
+        [0.01394652, 0.014086919, 0.017944122],
+    ),
+    (3, 14, False): (
+        [1, 3, 4, 5, 8, 9, 11, 12, 13],
+        [[4, 1, 8, 3, 9, 13, 12, 5]] * 3,
+        [0.330367706, 0.297703381, 0.302194602],
+        [0.330367656, 0.297703384, 0.302194579],
+    ),
+}
+_PINNED_WINDOWS_SEED_2 = [
+    [1, 2, 3, 5, 6, 7, 11, 12, 13],
+    [1, 2, 3, 5, 6, 7, 11, 12, 13],
+    [1, 2, 3, 5, 6, 10, 11, 12, 13],
+]
+
+
+@pytest.mark.parametrize("precision", ["float32", "float64"])
+@pytest.mark.parametrize("case", sorted(_PINNED))
+def test_results_are_pinned_to_the_reference_implementation(
+    case: tuple[int, int, bool], precision: str
+) -> None:
+    seed, count, lazy = case
+    window, matched, costs32, costs64 = _PINNED[case]
+    candidates, detections, appearance = _pinned_scene(seed, count)
+    params = WindowAssociationParams(
+        rpm=TpsRpmSettings(precision=precision), lazy_shape_checks=lazy
+    )
+    results = associate_candidates(candidates, detections, appearance, params)
+    expected_costs = costs32 if precision == "float32" else costs64
+    windows = [window] * 3 if window is not None else _PINNED_WINDOWS_SEED_2
+    for result, rows, cost, expected_window in zip(
+        results, matched, expected_costs, windows, strict=True
+    ):
+        assert result.diagnostics.fallback == FALLBACK_NONE
+        assert result.matched_detection.tolist() == rows
+        assert result.window.tolist() == expected_window
+        assert result.cost == pytest.approx(cost, abs=1e-6)
+
+
+def test_identical_candidates_share_their_runs_and_results() -> None:
+    predicted, detections, truth = _pattern_scene(13, 4)
+    other = predicted + np.random.default_rng(9).normal(0, 8, predicted.shape)
+    shared = associate_candidates([predicted, other, predicted.copy()], detections)
+    alone = associate_candidates([predicted], detections)[0]
+    for result in (shared[0], shared[2]):
+        assert result.matched_detection.tolist() == alone.matched_detection.tolist()
+        assert result.window.tolist() == alone.window.tolist()
+        assert result.cost == pytest.approx(alone.cost, abs=1e-6)
+        assert result.diagnostics.rpm_runs == alone.diagnostics.rpm_runs
+    assert shared[0].matched_detection.tolist() == truth.tolist()
