@@ -74,6 +74,25 @@ class FrameObservations:
         return cached
 
 
+def identity_indices(
+    sequence: Sequence[FrameObservations],
+) -> tuple[dict[int, int], dict[int, int]]:
+    """Row index of every ground-truth id and every hypothesis id, in order of appearance.
+
+    >>> gt = {0: {5: (0.0, 0.0)}, 1: {3: (0.0, 0.0), 5: (1.0, 0.0)}}
+    >>> identity_indices(build_sequence(gt, gt))
+    ({5: 0, 3: 1}, {5: 0, 3: 1})
+    """
+    gt_index: dict[int, int] = {}
+    hyp_index: dict[int, int] = {}
+    for observation in sequence:
+        for object_id in observation.gt_ids.tolist():
+            gt_index.setdefault(object_id, len(gt_index))
+        for hypothesis_id in observation.hyp_ids.tolist():
+            hyp_index.setdefault(hypothesis_id, len(hyp_index))
+    return gt_index, hyp_index
+
+
 def build_sequence(
     ground_truth: Mapping[int, Mapping[int, Sequence[float]]],
     hypotheses: Mapping[int, Mapping[int, Sequence[float]]],

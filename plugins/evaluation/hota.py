@@ -26,6 +26,7 @@ from trackfw_plugins.evaluation.clear_mot import (
     Geometry,
     box_iou,
     default_threshold,
+    identity_indices,
     pairwise_distances,
 )
 
@@ -145,13 +146,7 @@ def hota_counts(
     1.0
     """
     thresholds = ALPHAS.copy() if alphas is None else np.asarray(alphas, dtype=np.float64)
-    gt_index: dict[int, int] = {}
-    hyp_index: dict[int, int] = {}
-    for observation in sequence:
-        for object_id in observation.gt_ids.tolist():
-            gt_index.setdefault(object_id, len(gt_index))
-        for hypothesis_id in observation.hyp_ids.tolist():
-            hyp_index.setdefault(hypothesis_id, len(hyp_index))
+    gt_index, hyp_index = identity_indices(sequence)
     n_gt, n_hyp, n_alpha = len(gt_index), len(hyp_index), len(thresholds)
     gt_counts = np.zeros(n_gt)
     hyp_counts = np.zeros(n_hyp)

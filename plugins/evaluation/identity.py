@@ -19,6 +19,7 @@ from trackfw_plugins.evaluation.clear_mot import (
     FrameObservations,
     Geometry,
     default_threshold,
+    identity_indices,
 )
 
 
@@ -81,13 +82,7 @@ def identity_counts(
     (2, 1, 1, 0.6667)
     """
     limit = default_threshold(geometry) if threshold is None else float(threshold)
-    gt_index: dict[int, int] = {}
-    hyp_index: dict[int, int] = {}
-    for observation in sequence:
-        for object_id in observation.gt_ids.tolist():
-            gt_index.setdefault(object_id, len(gt_index))
-        for hypothesis_id in observation.hyp_ids.tolist():
-            hyp_index.setdefault(hypothesis_id, len(hyp_index))
+    gt_index, hyp_index = identity_indices(sequence)
     gt_appearances = np.zeros(len(gt_index), dtype=np.int64)
     hyp_appearances = np.zeros(len(hyp_index), dtype=np.int64)
     co_occurrences = np.zeros((len(gt_index), len(hyp_index)), dtype=np.int64)
