@@ -8,12 +8,11 @@ import numpy as np
 import pytest
 import scipy.io
 
+from trackfw_plugins.maths.sinkhorn import SinkhornWorkspace, sinkhorn
 from trackfw_plugins.maths.thin_plate import TpsBasis, tps_kernel
 from trackfw_plugins.maths.tps_rpm import (
     TpsRpmSettings,
     TpsRpmTemplate,
-    _sinkhorn,
-    _SinkhornWorkspace,
     code_temperatures,
     normalise_points,
     threshold_matches,
@@ -320,7 +319,7 @@ def test_multi_batch_is_pinned_to_the_reference_implementation(
     np.testing.assert_allclose(outputs.bending_energy, energies, rtol=0, atol=1e-6)
 
 
-def _plain_sinkhorn(
+def _plainsinkhorn(
     affinity: np.ndarray,
     row_slack: float,
     column_slack: float,
@@ -353,13 +352,13 @@ def test_batched_sinkhorn_equals_one_data_set_at_a_time(with_workspace: bool) ->
     affinity = np.exp(-sharpness * rng.uniform(0, 1, (rows, columns, batch)))
     row_slack = rng.uniform(0.05, 0.3, batch)
     column_slack = rng.uniform(0.05, 0.3, batch)
-    workspace = _SinkhornWorkspace(rows, columns, batch, 10, np.float64) if with_workspace else None
+    workspace = SinkhornWorkspace(rows, columns, batch, 10, np.float64) if with_workspace else None
     for _ in range(2):  # a reused workspace must not leak state between calls
-        row_scale, column_scale = _sinkhorn(
+        row_scale, column_scale = sinkhorn(
             affinity, row_slack, column_slack, 10, 0.05, 1.7, workspace
         )
         for index in range(batch):
-            expected_row, expected_column = _plain_sinkhorn(
+            expected_row, expected_column = _plainsinkhorn(
                 affinity[:, :, index], row_slack[index], column_slack[index], 10, 0.05, 1.7
             )
             np.testing.assert_allclose(row_scale[:, index], expected_row, rtol=1e-12)
