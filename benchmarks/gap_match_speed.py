@@ -21,6 +21,7 @@ for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402 - after pinning the BLAS threads
 
+from trackfw_plugins.datasets.points import gap_scene  # noqa: E402
 from trackfw_plugins.maths.tps_rpm import TpsRpmSettings  # noqa: E402
 from trackfw_plugins.maths.window_association import (  # noqa: E402
     WindowAssociationParams,
@@ -28,41 +29,6 @@ from trackfw_plugins.maths.window_association import (  # noqa: E402
     build_windows,
     select_candidate,
 )
-
-IMAGE = np.array([1920.0, 1080.0])
-
-
-def make_scene(
-    detection_count: int, clustered: bool, seed: int, size: int = 8
-) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
-    """Three candidate predictions (size, 2), detections (N, 2) and the true rows of V."""
-    rng = np.random.default_rng(seed)
-    while True:
-        pattern = rng.uniform([0, 0], [500, 300], (size, 2))
-        gaps = np.sqrt(np.sum((pattern[:, None] - pattern[None]) ** 2, axis=2))
-        np.fill_diagonal(gaps, np.inf)
-        if gaps.min() > 60:
-            break
-    angle, scale = rng.uniform(-0.26, 0.26), rng.uniform(0.8, 1.25)
-    rotation = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
-    observed = (pattern - pattern.mean(axis=0)) @ rotation.T * scale
-    observed += rng.uniform([700, 400], [1200, 700]) + rng.normal(0, 6, (size, 2))
-    low, high = observed.min(axis=0) - 40, observed.max(axis=0) + 40
-    centres = rng.uniform([0, 0], IMAGE, (4, 2))
-    clutter: list[np.ndarray] = []
-    while len(clutter) < detection_count - size:
-        if clustered:
-            point = centres[rng.integers(4)] + rng.normal(0, 150, 2)
-        else:
-            point = rng.uniform([0, 0], IMAGE)
-        inside_group = np.all((point >= low) & (point <= high))
-        if not inside_group and np.all((point >= 0) & (point <= IMAGE)):
-            clutter.append(point)
-    detections = np.vstack([observed, np.array(clutter)])
-    permutation = rng.permutation(detection_count)
-    predicted = pattern - pattern.mean(axis=0) + observed.mean(axis=0)
-    candidates = [predicted + rng.normal(0, 6, (size, 2)) for _ in range(3)]
-    return candidates, detections[permutation], np.argsort(permutation)[:size]
 
 
 def main() -> None:
@@ -73,15 +39,21 @@ def main() -> None:
         "--precision", nargs="+", default=["float64", "float32"], choices=["float64", "float32"]
     )
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--scenes", type=int, default=3, help="scenes per setting (the window count varies a lot)"
+    )
     arguments = parser.parse_args()
 
     print(
-        f"{'|V|':>4} {'layout':9} {'precision':9} | {'windows':>7} {'dedup':>6} {'size ok':>7} "
+        f"{'|V|':>4} {'layout':9} {'seed':>5} {'precision':9} | {'windows':>7} {'dedup':>6} {'size ok':>7} "
         f"| {'s/gap':>6} {'build s':>7} | {'order':>5} {'correct':>7}"
     )
     for count in arguments.counts:
-        for clustered in (False, True):
-            candidates, detections, truth = make_scene(count, clustered, arguments.seed + count)
+        for clustered, scene in ((c, k) for c in (False, True) for k in range(arguments.scenes)):
+            seed = arguments.seed + count + 1000 * scene
+            candidates, detections, truth = gap_scene(
+                count, seed, clustered=clustered, candidates=3
+            )
             for precision in arguments.precision:
                 params = WindowAssociationParams(rpm=TpsRpmSettings(precision=precision))
                 timings, build_timings = [], []
@@ -95,7 +67,7 @@ def main() -> None:
                     build_timings.append(built - start)
                 correct = float(np.mean(results[best].matched_detection == truth))
                 print(
-                    f"{count:>4} {'clustered' if clustered else 'uniform':9} {precision:9} | "
+                    f"{count:>4} {'clustered' if clustered else 'uniform':9} {seed:>5} {precision:9} | "
                     f"{windows.total:>7} {windows.after_dedup:>6} {windows.after_size:>7} | "
                     f"{min(timings):6.2f} {min(build_timings):7.3f} | {best + 1:>5} "
                     f"{correct:7.2f}",

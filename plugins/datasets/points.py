@@ -98,3 +98,53 @@ def make_points_video(
         },
     )
     return directory
+
+
+def gap_scene(
+    detection_count: int,
+    seed: int,
+    size: int = 8,
+    noise: float = 6.0,
+    clustered: bool = False,
+    candidates: int = 1,
+    image: tuple[float, float] = (1920.0, 1080.0),
+) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """A gap-matching problem: a group pattern seen after a camera-pose change, among clutter.
+
+    The pattern (points at least 60 px apart) is rotated by up to 15 degrees, scaled by 0.8-1.25,
+    moved and jittered; clutter lies outside its bounding box, uniform over the image or around
+    four centres (``clustered``). Predictions are the unrotated pattern at the observed centroid
+    plus noise, one array per candidate (e.g. per AR order).
+
+    Returns:
+        ``candidates`` arrays ``(size, 2)`` of predictions U, the detections V ``(N, 2)`` in random
+        order, and ``(size,)`` the row of V that belongs to each target.
+    """
+    rng = np.random.default_rng(seed)
+    while True:
+        pattern = rng.uniform([0, 0], [500, 300], (size, 2))
+        gaps = np.sqrt(np.sum((pattern[:, None] - pattern[None]) ** 2, axis=2))
+        np.fill_diagonal(gaps, np.inf)
+        if gaps.min() > 60:
+            break
+    angle, scale = rng.uniform(-0.26, 0.26), rng.uniform(0.8, 1.25)
+    rotation = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    observed = (pattern - pattern.mean(axis=0)) @ rotation.T * scale
+    observed += rng.uniform([700, 400], [1200, 700]) + rng.normal(0, noise, (size, 2))
+    low, high = observed.min(axis=0) - 40, observed.max(axis=0) + 40
+    bounds = np.asarray(image, dtype=np.float64)
+    centres = rng.uniform([0, 0], bounds, (4, 2)) if clustered else None
+    clutter: list[np.ndarray] = []
+    while len(clutter) < detection_count - size:
+        if centres is not None:
+            point = centres[rng.integers(4)] + rng.normal(0, 150, 2)
+        else:
+            point = rng.uniform([0, 0], bounds)
+        inside_group = np.all((point >= low) & (point <= high))
+        if not inside_group and np.all((point >= 0) & (point <= bounds)):
+            clutter.append(point)
+    detections = np.vstack([observed, np.array(clutter).reshape(-1, 2)])
+    permutation = rng.permutation(detection_count)
+    predicted = pattern - pattern.mean(axis=0) + observed.mean(axis=0)
+    predictions = [predicted + rng.normal(0, noise, (size, 2)) for _ in range(candidates)]
+    return predictions, detections[permutation], np.argsort(permutation)[:size]

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from trackfw_plugins.datasets.points import gap_scene
 from trackfw_plugins.maths.tps_rpm import TpsRpmSettings, tps_rpm
 from trackfw_plugins.maths.window_association import (
     FALLBACK_ALL_DETECTIONS,
@@ -27,33 +28,9 @@ from trackfw_plugins.maths.window_association import (
 def _pattern_scene(
     detection_count: int, seed: int, size: int = 8, noise: float = 6.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A group pattern seen after a camera-pose change, among clutter outside its box.
-
-    Returns:
-        Predicted points U (size, 2), detections V (N, 2) and, per target, its row in V.
-    """
-    rng = np.random.default_rng(seed)
-    while True:
-        pattern = rng.uniform([0, 0], [500, 300], (size, 2))
-        gaps = np.sqrt(np.sum((pattern[:, None] - pattern[None]) ** 2, axis=2))
-        np.fill_diagonal(gaps, np.inf)
-        if gaps.min() > 60:
-            break
-    angle, scale = rng.uniform(-0.26, 0.26), rng.uniform(0.8, 1.25)
-    rotation = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
-    observed = (pattern - pattern.mean(axis=0)) @ rotation.T * scale
-    observed += rng.uniform([700, 400], [1200, 700]) + rng.normal(0, noise, (size, 2))
-    low, high = observed.min(axis=0) - 40, observed.max(axis=0) + 40
-    clutter: list[np.ndarray] = []
-    while len(clutter) < detection_count - size:
-        point = rng.uniform([0, 0], [1920, 1080])
-        if not np.all((point >= low) & (point <= high)):
-            clutter.append(point)
-    detections = np.vstack([observed, np.array(clutter).reshape(-1, 2)])
-    permutation = rng.permutation(detection_count)
-    predicted = pattern - pattern.mean(axis=0) + observed.mean(axis=0)
-    predicted += rng.normal(0, noise, (size, 2))
-    return predicted, detections[permutation], np.argsort(permutation)[:size]
+    """Predicted points U (size, 2), detections V (N, 2) and, per target, its row in V."""
+    predictions, detections, truth = gap_scene(detection_count, seed, size, noise)
+    return predictions[0], detections, truth
 
 
 def _naive_windows(points: np.ndarray, template_size: int) -> list[frozenset[int]]:
