@@ -10,12 +10,14 @@ reported on that frame.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from trackfw.dataset import frame_source_path
 from trackfw.errors import UserError
 from trackfw.pipeline import Pipeline
 from trackfw.records import (
@@ -94,6 +96,20 @@ def _check_ground_truth(stages: dict[str, Stage], video: VideoContext) -> None:
                     f"{video.path}: the {kind.replace('_', ' ')} {candidate.name!r} needs ground truth"
                     " (gt.csv, heads.csv, intervals.csv) and this video has none."
                 )
+
+
+def check_videos(stages: dict[str, Stage], videos: Sequence[VideoContext]) -> None:
+    """Raise the UserError a run would meet later: missing ground truth or missing frames.
+
+    Called before anything is written, so a bad input never leaves half a run behind.
+    """
+    decode = stages_need_pixels(stages)
+    for video in videos:
+        _check_ground_truth(stages, video)
+        if decode:
+            # A point-only video (annotations without frames) cannot feed a stage that reads
+            # pixels.
+            frame_source_path(Path(video.path))
 
 
 def _initial_targets(

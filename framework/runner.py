@@ -11,8 +11,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from trackfw.dataset import frame_source_path, list_videos, load_video
-from trackfw.engine import Engine, VideoRun, _check_ground_truth, stages_need_pixels
+from trackfw.dataset import list_videos, load_video
+from trackfw.engine import Engine, VideoRun, check_videos
 from trackfw.errors import UserError
 from trackfw.outputs import write_run
 from trackfw.pipeline import Pipeline, load_pipeline
@@ -67,14 +67,7 @@ def prepare_run(
             f"{pipeline_path}: input: missing; give --input or set 'input:' in the pipeline."
         )
     videos = [load_video(path) for path in list_videos(source)]
-    stages = pipeline.build(registry)
-    decode = stages_need_pixels(stages)
-    for video in videos:
-        _check_ground_truth(stages, video)
-        if decode:
-            # A point-only video (annotations without frames) cannot feed a stage that reads
-            # pixels; say so now rather than after other videos were written.
-            frame_source_path(Path(video.path))
+    check_videos(pipeline.build(registry), videos)
     return PreparedRun(pipeline, videos, output or Path("runs") / pipeline.name)
 
 

@@ -24,8 +24,8 @@ from typing import Any
 
 from trackfw.atomic import write_json
 from trackfw.bench.jobs import Job, JobResult, is_done
-from trackfw.dataset import frame_source_path, list_videos, load_video
-from trackfw.engine import _check_ground_truth, stages_need_pixels
+from trackfw.dataset import list_videos, load_video
+from trackfw.engine import check_videos
 from trackfw.errors import UserError
 from trackfw.pipeline import Pipeline, load_pipeline, parse_yaml
 from trackfw.records import VideoContext
@@ -197,12 +197,7 @@ def plan_sweep(
             f"{dataset}: several videos are named {', '.join(duplicates)}; expected unique names."
         )
     for entry in planned:
-        stages = entry.pipeline.build(registry)
-        needs_frames = stages_need_pixels(stages)
-        for video in videos:
-            _check_ground_truth(stages, video)
-            if needs_frames:
-                frame_source_path(Path(video.path))
+        check_videos(entry.pipeline.build(registry), videos)
     if use_cache:
         cache_dir = Path(cache_dir).resolve() if cache_dir is not None else out_dir / CACHE_FOLDER
     else:
