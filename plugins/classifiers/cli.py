@@ -66,16 +66,18 @@ def train_classifier(
     max_hold: int = 300,
 ) -> dict[str, Any]:
     """Train, optionally evaluate, write the model; returns the report (see the command)."""
-    from trackfw_plugins.classifiers.training import (
+    from trackfw_plugins.classifiers.measurements import (
         FeatureSettings,
+        collect_measurements,
+        read_video_list,
+        select_videos,
+    )
+    from trackfw_plugins.classifiers.training import (
         FrameScores,
         classify_online,
-        collect_measurements,
         fit_flow_thresholds,
         fit_model,
         flow_threshold_online,
-        read_video_list,
-        select_videos,
     )
     from trackfw_plugins.classifiers.training import select_rules as choose_rules
 

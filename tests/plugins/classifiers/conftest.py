@@ -9,7 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from trackfw_plugins.classifiers.training import FeatureSettings, VideoMeasurements, fit_model
+from trackfw_plugins.classifiers.measurements import FeatureSettings, VideoMeasurements
+from trackfw_plugins.classifiers.training import fit_model
 
 
 def synthetic_measurements(name: str, seed: int, length: int = 120) -> VideoMeasurements:

@@ -12,16 +12,11 @@ import pytest
 from trackfw.errors import UserError
 from trackfw.records import Detections, FrameData, VideoContext
 from trackfw_plugins.classifiers.infoless_features import FeatureAssembler
+from trackfw_plugins.classifiers.measurements import FeatureSettings, VideoMeasurements
 from trackfw_plugins.classifiers.online_rules import OnlineDecider, OnlineRules, model_rules
 from trackfw_plugins.classifiers.svm import SvmClassifier, SvmParams
 from trackfw_plugins.classifiers.svm_model import load_model
-from trackfw_plugins.classifiers.training import (
-    FeatureSettings,
-    VideoMeasurements,
-    classify_online,
-    fit_model,
-    select_rules,
-)
+from trackfw_plugins.classifiers.training import classify_online, fit_model, select_rules
 
 
 def stuck_sequence() -> tuple[list[float], list[float], list[float]]:

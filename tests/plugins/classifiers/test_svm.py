@@ -13,8 +13,9 @@ from pydantic import ValidationError
 
 from trackfw.errors import UserError
 from trackfw.records import Detections, FrameData, VideoContext
+from trackfw_plugins.classifiers.measurements import VideoMeasurements
 from trackfw_plugins.classifiers.svm import SvmClassifier, SvmParams
-from trackfw_plugins.classifiers.training import VideoMeasurements, classify_online
+from trackfw_plugins.classifiers.training import classify_online
 
 VIDEO = VideoContext(name="toy", path="toy", n_frames=40, width=640, height=360)
 

@@ -9,18 +9,20 @@ import numpy as np
 import pytest
 
 from trackfw.errors import UserError
+from trackfw_plugins.classifiers.measurements import (
+    FeatureSettings,
+    VideoMeasurements,
+    load_measurements,
+    read_video_list,
+    save_measurements,
+)
 from trackfw_plugins.classifiers.svm_model import load_model
 from trackfw_plugins.classifiers.training import (
-    FeatureSettings,
     FrameScores,
-    VideoMeasurements,
     classify_online,
     fit_flow_thresholds,
     fit_model,
     flow_threshold_online,
-    load_measurements,
-    read_video_list,
-    save_measurements,
 )
 
 
