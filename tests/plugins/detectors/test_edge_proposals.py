@@ -74,3 +74,15 @@ def test_damaged_sed_model_is_a_user_error(tmp_path: Path) -> None:
     damaged.write_bytes(b"not a model")
     with pytest.raises(UserError, match="sed_model"):
         EdgeBoxProposer(EdgeBoxesSettings(), sed_model_path=damaged)
+
+
+def test_proposals_do_not_depend_on_earlier_frames() -> None:
+    rng = np.random.default_rng(3)
+    frame = (rng.random((180, 320, 3)) * 255).astype(np.uint8)
+    other = (rng.random((180, 320, 3)) * 255).astype(np.uint8)
+    proposer = EdgeBoxProposer(EdgeBoxesSettings())
+    first, _ = proposer.propose(frame)
+    for _ in range(3):
+        proposer.propose(other)
+    again, _ = proposer.propose(frame)
+    np.testing.assert_array_equal(first, again)
