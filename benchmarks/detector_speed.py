@@ -64,6 +64,9 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1, help="onnxruntime intra-op threads")
     parser.add_argument("--blob-width", type=int, default=None, help="override blob_width")
     parser.add_argument("--work-width", type=int, default=None, help="override work_width")
+    parser.add_argument(
+        "--sequential", action="store_true", help="no EdgeBoxes thread (overlap_proposals off)"
+    )
     arguments = parser.parse_args()
     frames = (
         video_frames(arguments.video, arguments.frames)
@@ -78,16 +81,23 @@ def main() -> None:
         )
         if value is not None
     }
-    params = EdgeBoxCnnParams(intra_op_threads=arguments.threads, **overrides)
+    params = EdgeBoxCnnParams(
+        intra_op_threads=arguments.threads,
+        overlap_proposals=not arguments.sequential,
+        **overrides,
+    )
     detector = EdgeBoxCnnDetector(params)
     detector.detect_image(frames[0])  # warm-up (onnxruntime allocations)
     totals, proposals, scoring, counts, found = [], [], [], [], []
+    edge_boxes, blobs = [], []
     for frame in itertools.islice(itertools.cycle(frames), arguments.frames):
         started = time.perf_counter()
         detections = detector.detect_image(frame)
         totals.append(time.perf_counter() - started)
         proposals.append(detector.last_timing["proposals"])
         scoring.append(detector.last_timing["scoring"])
+        edge_boxes.append(detector.last_timing["edge_boxes"])
+        blobs.append(detector.last_timing["blobs"])
         counts.append(detector.last_timing["proposed"])
         found.append(len(detections))
 
@@ -97,13 +107,16 @@ def main() -> None:
     source = arguments.video or "synthetic frames"
     print(f"edgebox-cnn on {len(totals)} frames of {source} at {WIDTH}x{HEIGHT}, 1 process,")
     print(
-        f"  work_width {params.work_width}, blob_width {params.blob_width}, threads {params.intra_op_threads}"
+        f"  work_width {params.work_width}, blob_width {params.blob_width},"
+        f" threads {params.intra_op_threads}, EdgeBoxes in its own thread: {params.overlap_proposals}"
     )
     print(f"  total      {ms(totals)}  -> {1 / statistics.mean(totals):.1f} fps")
-    print(f"  proposals  {ms(proposals)}  ({statistics.mean(counts):.0f} boxes per frame)")
+    print(f"  proposals  {ms(proposals)}  ({statistics.mean(counts):.0f} boxes per frame; waited for)")
+    print(f"    EdgeBoxes  {ms(edge_boxes)}")
+    print(f"    DoG blobs  {ms(blobs)}")
     print(f"  scoring    {ms(scoring)}")
     print(
-        f"  rest (NMS) {ms([t - p - s for t, p, s in zip(totals, proposals, scoring, strict=True)])}"
+        f"  rest (NMS, merging) {ms([t - p - s for t, p, s in zip(totals, proposals, scoring, strict=True)])}"
     )
     print(f"  detections {statistics.mean(found):.1f} per frame")
 

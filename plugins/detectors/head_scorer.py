@@ -113,8 +113,9 @@ def _sigmoid(values: NDArray[np.float64]) -> NDArray[np.float64]:
     return 0.5 * (1.0 + np.tanh(0.5 * values))
 
 
-
-def open_onnx_session(path: Path, intra_op_threads: int, expected: str) -> onnxruntime.InferenceSession:
+def open_onnx_session(
+    path: Path, intra_op_threads: int, expected: str
+) -> onnxruntime.InferenceSession:
     """A CPU onnxruntime session for ``path``; a missing or unloadable file is one UserError.
 
     Args:
@@ -139,6 +140,7 @@ def open_onnx_session(path: Path, intra_op_threads: int, expected: str) -> onnxr
             f"{path}: model cannot be loaded by onnxruntime ({str(error).splitlines()[0]});"
             " expected a valid ONNX file."
         ) from error
+
 
 class HeadScorer:
     """An onnxruntime session that maps head crops to head probabilities.

@@ -29,6 +29,7 @@ class ProposalSettings:
         blob_width: frames are reduced to this width for DoG blobs (px); 0 turns blobs off.
         blob_threshold: minimum scale-normalised DoG response (grey levels / 255).
         blob_max_per_scale: strongest blobs kept per scale.
+        blob_scales_per_octave: blob scales per doubling of the head size.
         min_head_size: smallest box side kept, px at 1080p (scaled by height / 1080).
         max_head_size: largest box side kept, px at 1080p (scaled by height / 1080).
         sed_model: optional structured-edge model for EdgeBoxes.
@@ -36,9 +37,10 @@ class ProposalSettings:
 
     edge_boxes: EdgeBoxesSettings = field(default_factory=EdgeBoxesSettings)
     edge_boxes_width: int = 640
-    blob_width: int = 1280
+    blob_width: int = 640
     blob_threshold: float = 0.02
     blob_max_per_scale: int = 150
+    blob_scales_per_octave: int = 2
     min_head_size: float = 8.0
     max_head_size: float = 120.0
     sed_model: str | Path | None = None
@@ -68,28 +70,44 @@ class HeadProposer:
             else None
         )
 
-    def propose(self, image: NDArray[np.uint8]) -> FloatArray:
-        """``(N, 4)`` boxes ``(left, top, width, height)`` of head size on a ``(H, W, 3)`` frame."""
-        settings = self.settings
-        size_scale = image.shape[0] / 1080.0
-        smallest = settings.min_head_size * size_scale
-        largest = settings.max_head_size * size_scale
-        parts: list[FloatArray] = []
-        if self.edge_boxes is not None:
-            reduced, scale = _reduce(image, settings.edge_boxes_width)
-            boxes, _objectness = self.edge_boxes.propose(reduced)
-            parts.append(boxes / scale)
-        if settings.blob_width > 0:
-            reduced, scale = _reduce(image, settings.blob_width)
-            sigmas = blob_sigmas(smallest * scale, largest * scale)
-            boxes, _response = blob_boxes(
-                reduced, sigmas, settings.blob_threshold, settings.blob_max_per_scale
-            )
-            parts.append(boxes / scale)
-        if not parts:
-            return np.zeros((0, 4))
-        boxes = np.concatenate(parts, axis=0)
+    def _head_sized(self, boxes: FloatArray, frame_height: int) -> FloatArray:
+        """The boxes whose sides lie within the head-size range of a frame this tall."""
+        size_scale = frame_height / 1080.0
+        smallest = self.settings.min_head_size * size_scale
+        largest = self.settings.max_head_size * size_scale
         short_side = np.minimum(boxes[:, 2], boxes[:, 3])
         long_side = np.maximum(boxes[:, 2], boxes[:, 3])
         # The tolerance keeps blobs made at exactly the smallest size despite rounding.
         return boxes[(short_side >= 0.999 * smallest) & (long_side <= 1.001 * largest)]
+
+    def edge_box_proposals(self, image: NDArray[np.uint8]) -> FloatArray:
+        """Head-sized EdgeBoxes proposals ``(N, 4)`` of a ``(H, W, 3)`` frame (none when off)."""
+        if self.edge_boxes is None:
+            return np.zeros((0, 4))
+        reduced, scale = _reduce(image, self.settings.edge_boxes_width)
+        boxes, _objectness = self.edge_boxes.propose(reduced)
+        return self._head_sized(boxes / scale, image.shape[0])
+
+    def blob_proposals(self, image: NDArray[np.uint8]) -> FloatArray:
+        """Head-sized DoG blob proposals ``(N, 4)`` of a ``(H, W, 3)`` frame (none when off)."""
+        settings = self.settings
+        if settings.blob_width <= 0:
+            return np.zeros((0, 4))
+        size_scale = image.shape[0] / 1080.0
+        reduced, scale = _reduce(image, settings.blob_width)
+        sigmas = blob_sigmas(
+            settings.min_head_size * size_scale * scale,
+            settings.max_head_size * size_scale * scale,
+            settings.blob_scales_per_octave,
+        )
+        boxes, _response = blob_boxes(
+            reduced, sigmas, settings.blob_threshold, settings.blob_max_per_scale
+        )
+        return self._head_sized(boxes / scale, image.shape[0])
+
+    def propose(self, image: NDArray[np.uint8]) -> FloatArray:
+        """``(N, 4)`` boxes ``(left, top, width, height)`` of head size on a ``(H, W, 3)`` frame.
+
+        EdgeBoxes proposals come first, then blobs.
+        """
+        return np.concatenate([self.edge_box_proposals(image), self.blob_proposals(image)])

@@ -81,3 +81,19 @@ def test_blank_frame_gives_no_detection(tmp_path: Path, make_scorer) -> None:
     detector = EdgeBoxCnnDetector(EdgeBoxCnnParams(model=str(make_scorer(tmp_path / "s.onnx"))))
     detections = detector.detect_image(np.full((360, 640, 3), 80, dtype=np.uint8))
     assert len(detections) == 0 and detections.points.shape == (0, 2)
+
+
+def test_overlapped_proposals_give_the_sequential_result(
+    tmp_path: Path, make_scorer, make_disc_image
+) -> None:
+    image = make_disc_image(CENTRES)
+    model = str(make_scorer(tmp_path / "scorer.onnx"))
+    overlapped = EdgeBoxCnnDetector(EdgeBoxCnnParams(model=model, overlap_proposals=True))
+    sequential = EdgeBoxCnnDetector(EdgeBoxCnnParams(model=model, overlap_proposals=False))
+    first, second = overlapped.detect_image(image), sequential.detect_image(image)
+    assert len(first) > 0
+    np.testing.assert_array_equal(first.points, second.points)
+    np.testing.assert_array_equal(first.scores, second.scores)
+    timing = overlapped.last_timing
+    assert timing["proposed"] == len(overlapped.proposals(image)) > 0
+    assert timing["edge_boxes"] > 0 and timing["blobs"] > 0 and timing["scoring"] > 0
