@@ -8,6 +8,9 @@ Usage::
 A detection matches a head when it lies within 0.5 head size (Hungarian, one-to-one); heads
 smaller than the detector's minimum (8 px at 1080p, scaled by height/1080) are left out, and so
 are detections on them. MOT sequences use the head proxy (left + w/2, top + 0.08 h), size 0.12 h.
+Each detector is scored on all frames and on the informative ones (outside the ground-truth
+info-less intervals: the frames whose detections the tracker uses); ``--thresholds`` adds rows for
+the edgebox-cnn detector at other score thresholds.
 """
 
 from __future__ import annotations
@@ -33,12 +36,17 @@ from trackfw_plugins.detectors.training.sampling import (
 DENSE_MODEL = Path(__file__).resolve().parents[1] / "plugins/detectors/models/head_cnn_dense.onnx"
 
 
-def detectors(names: list[str], model: str, height: int) -> dict[str, Callable]:
+def detectors(
+    names: list[str], model: str, height: int, thresholds: list[float]
+) -> dict[str, Callable]:
     """The detect functions to compare, by name."""
     built: dict[str, Callable[[np.ndarray], Detections]] = {}
     for name in names:
         if name == "edgebox-cnn":
             built[name] = EdgeBoxCnnDetector(EdgeBoxCnnParams(model=model)).detect_image
+            for threshold in thresholds:
+                params = EdgeBoxCnnParams(model=model, score_threshold=threshold)
+                built[f"{name}@{threshold:g}"] = EdgeBoxCnnDetector(params).detect_image
         elif name == "edgebox-only":
             params = EdgeBoxCnnParams(model=model, blob_width=0)
             built[name] = EdgeBoxCnnDetector(params).detect_image
@@ -81,6 +89,9 @@ def main() -> None:
     parser.add_argument("--max-frames", type=int, default=60)
     parser.add_argument("--detectors", default="edgebox-cnn,edgebox-only,hog")
     parser.add_argument("--model", default="", help="ONNX classifier (default: shipped)")
+    parser.add_argument(
+        "--thresholds", default="", help="extra edgebox-cnn score thresholds, comma-separated"
+    )
     arguments = parser.parse_args()
     for source, frames in frames_of(arguments):
         frames = list(itertools.islice(frames, arguments.max_frames))
@@ -89,11 +100,16 @@ def main() -> None:
         height = frames[0].image.shape[0]
         minimum = 8.0 * height / 1080.0
         print(f"{source}: {len(frames)} frames, {frames[0].image.shape[1]}x{height}")
+        thresholds = [float(value) for value in arguments.thresholds.split(",") if value]
+        informative = [frame for frame in frames if frame.informative]
         for name, detect in detectors(
-            arguments.detectors.split(","), arguments.model, height
+            arguments.detectors.split(","), arguments.model, height, thresholds
         ).items():
             score = evaluate(detect, frames, min_head_size=minimum)
-            print(f"  {name:13s} {score.summary()}")
+            print(f"  {name:17s} all frames         {score.summary()}")
+            if 0 < len(informative) < len(frames):
+                score = evaluate(detect, informative, min_head_size=minimum)
+                print(f"  {name:17s} informative frames {score.summary()}")
 
 
 if __name__ == "__main__":

@@ -46,11 +46,13 @@ class AnnotatedFrame:
         image: ``(H, W, 3)`` uint8 BGR.
         heads: ``(M, 3)`` head centres and sizes ``x, y, head_size`` in pixels.
         source: where it came from (for messages).
+        informative: False on a frame inside a ground-truth info-less interval.
     """
 
     image: NDArray[np.uint8]
     heads: NDArray[np.float64]
     source: str
+    informative: bool = True
 
 
 @dataclass(frozen=True)
@@ -105,11 +107,15 @@ def _iter_video_frames(
     from trackfw.video_io import iter_frames
 
     video = load_video(video_dir)
+    infoless = video.ground_truth.infoless_frames() if video.ground_truth is not None else set()
     for t, image, status in iter_frames(video, decode=True):
         if t % frame_step or status != "ok" or image is None:
             continue
         yield AnnotatedFrame(
-            image=image, heads=heads.get(t, np.zeros((0, 3))), source=f"{video_dir}#{t}"
+            image=image,
+            heads=heads.get(t, np.zeros((0, 3))),
+            source=f"{video_dir}#{t}",
+            informative=t not in infoless,
         )
 
 

@@ -78,3 +78,22 @@ def test_real_sequence_frames(shared_data: Path) -> None:
     frame = next(iter_mot_frames(shared_data / "TUD-Stadtmitte", frame_step=50))
     assert frame.image.shape == (480, 640, 3) and len(frame.heads) >= 5
     assert (frame.heads[:, 2] > 5).all() and (frame.heads[:, 1] < 240).all()
+
+
+def test_dataset_frames_inside_an_interval_are_not_informative(tmp_path: Path) -> None:
+    import cv2
+
+    from trackfw.dataset import write_heads, write_intervals, write_meta
+    from trackfw.records import Interval
+    from trackfw_plugins.detectors.training.sampling import iter_dataset_frames
+
+    video = tmp_path / "data" / "video0"
+    (video / "img1").mkdir(parents=True)
+    for t in range(10):
+        cv2.imwrite(str(video / "img1" / f"{t + 1:06d}.png"), np.full((36, 64, 3), t, np.uint8))
+    write_heads(video / "heads.csv", [(t, 1, 20.0, 20.0, 8.0) for t in range(10)])
+    write_intervals(video / "intervals.csv", [Interval(2, 6, "sky")])  # frames 3..5 info-less
+    write_meta(video / "meta.json", {"width": 64, "height": 36, "fps": 30, "n_frames": 10})
+    frames = list(iter_dataset_frames(tmp_path / "data", frame_step=1))
+    assert [frame.informative for frame in frames] == [t not in (3, 4, 5) for t in range(10)]
+    assert all(len(frame.heads) == 1 for frame in frames)
