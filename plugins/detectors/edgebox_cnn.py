@@ -2,9 +2,9 @@
 
 Pipeline per frame: EdgeBoxes on the frame reduced to ``work_width`` (plus, [OURS], DoG blob
 proposals, see :mod:`.blob_proposals`) → keep head-sized boxes → grow by R-CNN context, warp to
-the CNN input and score in batches (onnxruntime) → threshold 0.5 → ``cv2.dnn.NMSBoxes(boxes,
-scores, 0.5, 0.3)`` → detection point = box centre. ``blob_width: 0`` gives the paper's
-EdgeBoxes-only pipeline. By default EdgeBoxes runs in a second thread while the blob proposals
+the CNN input and score in batches (onnxruntime) → threshold 0.7 → ``cv2.dnn.NMSBoxes(boxes,
+scores, 0.7, 0.3)`` → drop boxes centred on a better box ([OURS]) → detection point = box
+centre. ``blob_width: 0`` gives the paper's EdgeBoxes-only proposals. By default EdgeBoxes runs in a second thread while the blob proposals
 are scored, so that a frame uses two cores; the result is the same as in sequence.
 """
 
@@ -24,7 +24,11 @@ from pydantic import Field
 from trackfw.errors import UserError
 from trackfw.records import Detections, FrameData
 from trackfw.stages import Detector, StageParams
-from trackfw_plugins.detectors.boxes import detections_from_boxes, non_maximum_suppression
+from trackfw_plugins.detectors.boxes import (
+    detections_from_boxes,
+    non_maximum_suppression,
+    suppress_nested_centres,
+)
 from trackfw_plugins.detectors.edge_proposals import EdgeBoxesSettings
 from trackfw_plugins.detectors.head_scorer import HeadScorer
 from trackfw_plugins.detectors.proposals import HeadProposer, ProposalSettings
@@ -105,8 +109,14 @@ class EdgeBoxCnnParams(StageParams):
         "auto",
         description="CNN output: logit (sigmoid), logits2 (softmax, 1=head), probability, auto.",
     )
-    score_threshold: float = Field(0.5, ge=0, le=1, description="Head score threshold.")
+    score_threshold: float = Field(0.7, ge=0, le=1, description="Head score threshold.")
     nms_iou: float = Field(0.3, gt=0, le=1, description="IoU threshold of cv2.dnn.NMSBoxes.")
+    nms_centre_ratio: float = Field(
+        0.7,
+        ge=0,
+        description="After NMS, drop a box whose centre is within this share of the smaller"
+        " side of a better box's centre; 0 = IoU NMS only.",
+    )
     batch_size: int = Field(64, ge=1, description="Crops per onnxruntime call.")
     intra_op_threads: int = Field(1, ge=1, description="onnxruntime intra-op threads.")
     overlap_proposals: bool = Field(
@@ -234,6 +244,7 @@ class EdgeBoxCnnDetector(Detector):
         kept = non_maximum_suppression(
             boxes, scores, self.settings.score_threshold, self.settings.nms_iou
         )
+        kept = suppress_nested_centres(boxes, kept, self.settings.nms_centre_ratio)
         return detections_from_boxes(boxes[kept], scores[kept], "centre")
 
     def detect(self, frame: FrameData) -> Detections:
