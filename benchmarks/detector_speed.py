@@ -2,11 +2,13 @@
 
 Usage::
 
-    python benchmarks/detector_speed.py [--video DIR] [--frames 20] [--threads 1]
+    python benchmarks/detector_speed.py [--video DIR] [--frames 20] [--threads 0] [--sequential]
 
 ``--video`` is a trackfw video folder (frames are resized to 1280x720 when they differ); without it
 a synthetic 1280x720 frame (textured ground, 30 disc "heads") is used. Single process, onnxruntime
-with ``--threads`` intra-op threads (default 1, the detector's default).
+with ``--threads`` onnxruntime intra-op threads (default 0: the detector's automatic choice, all cores
+up to 4 unless OMP_NUM_THREADS says otherwise); EdgeBoxes runs in its own thread unless
+``--sequential``.
 """
 
 from __future__ import annotations
@@ -61,7 +63,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--video", type=Path, default=None, help="trackfw video folder")
     parser.add_argument("--frames", type=int, default=20, help="frames to time")
-    parser.add_argument("--threads", type=int, default=1, help="onnxruntime intra-op threads")
+    parser.add_argument(
+        "--threads", type=int, default=0, help="onnxruntime intra-op threads (0: auto)"
+    )
     parser.add_argument("--blob-width", type=int, default=None, help="override blob_width")
     parser.add_argument("--work-width", type=int, default=None, help="override work_width")
     parser.add_argument(

@@ -118,7 +118,12 @@ class EdgeBoxCnnParams(StageParams):
         " side of a better box's centre; 0 = IoU NMS only.",
     )
     batch_size: int = Field(64, ge=1, description="Crops per onnxruntime call.")
-    intra_op_threads: int = Field(1, ge=1, description="onnxruntime intra-op threads.")
+    intra_op_threads: int = Field(
+        0,
+        ge=0,
+        description="onnxruntime intra-op threads; 0 = OMP_NUM_THREADS if set (1 in bench"
+        " workers), else the CPU count (at most 4).",
+    )
     overlap_proposals: bool = Field(
         True,
         description="Run EdgeBoxes in a second thread while the blob proposals are scored.",

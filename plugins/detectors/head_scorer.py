@@ -9,6 +9,7 @@ checked when it is loaded so that a wrong file fails before any frame is read.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
@@ -102,15 +103,38 @@ def crops_to_tensor(
     >>> float(crops_to_tensor(np.full((1, 1, 1, 3), 255, dtype=np.uint8)).max())
     2.0
     """
-    crops = crops_bgr[..., ::-1] if rgb else crops_bgr
-    tensor = crops.transpose(0, 3, 1, 2).astype(np.float32) / np.float32(255.0)
-    mean_array = np.asarray(mean, dtype=np.float32).reshape(1, 3, 1, 1)
+    planar = crops_bgr.transpose(0, 3, 1, 2)
+    if rgb:
+        planar = planar[:, ::-1]
+    # Reorder while still uint8 (a quarter of the bytes), then scale in place: 4x faster than
+    # converting first on 1500 crops.
+    tensor = np.ascontiguousarray(planar).astype(np.float32)
     std_array = np.asarray(std, dtype=np.float32).reshape(1, 3, 1, 1)
-    return ((tensor - mean_array) / std_array).astype(np.float32)
+    mean_array = np.asarray(mean, dtype=np.float32).reshape(1, 3, 1, 1)
+    tensor *= np.float32(1.0 / 255.0) / std_array
+    tensor -= mean_array / std_array
+    return tensor
 
 
 def _sigmoid(values: NDArray[np.float64]) -> NDArray[np.float64]:
     return 0.5 * (1.0 + np.tanh(0.5 * values))
+
+
+def resolve_threads(requested: int) -> int:
+    """Threads for one onnxruntime operator: ``requested``, or for 0 what this process may use.
+
+    0 follows ``OMP_NUM_THREADS`` when it is set (``trackfw bench`` sets it to 1 in each worker
+    process), else the CPU count, at most 4 (the small head CNN gains nothing beyond).
+
+    >>> resolve_threads(3)
+    3
+    """
+    if requested > 0:
+        return requested
+    allowed = os.environ.get("OMP_NUM_THREADS", "")
+    if allowed.isdigit() and int(allowed) > 0:
+        return int(allowed)
+    return max(1, min(4, os.cpu_count() or 1))
 
 
 def open_onnx_session(
@@ -120,7 +144,7 @@ def open_onnx_session(
 
     Args:
         path: the ONNX file.
-        intra_op_threads: threads for one operator (1 keeps process-pool workers from competing).
+        intra_op_threads: threads for one operator; 0 = :func:`resolve_threads`'s choice.
         expected: what the file should be, for the error sentence ("an ONNX head classifier").
     """
     import onnxruntime
@@ -128,7 +152,7 @@ def open_onnx_session(
     if not path.is_file():
         raise UserError(f"{path}: model file not found; expected {expected}.")
     options = onnxruntime.SessionOptions()
-    options.intra_op_num_threads = max(1, int(intra_op_threads))
+    options.intra_op_num_threads = resolve_threads(int(intra_op_threads))
     options.inter_op_num_threads = 1
     options.log_severity_level = 3
     try:
@@ -155,7 +179,7 @@ class HeadScorer:
         output_form: ``logit`` (one value, sigmoid), ``logits2`` (two classes, softmax, index 1 is
             head), ``probability`` (already in [0, 1]) or ``auto`` (one value -> logit, two ->
             logits2).
-        intra_op_threads: onnxruntime threads inside one operator.
+        intra_op_threads: onnxruntime threads inside one operator (0: see :func:`resolve_threads`).
         batch_size: crops per onnxruntime call.
 
     Raises:
@@ -170,7 +194,7 @@ class HeadScorer:
         std: Sequence[float] = (0.25, 0.25, 0.25),
         rgb: bool = True,
         output_form: OutputForm = "auto",
-        intra_op_threads: int = 1,
+        intra_op_threads: int = 0,
         batch_size: int = 64,
     ) -> None:
         path = Path(model_path)

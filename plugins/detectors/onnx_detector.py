@@ -88,7 +88,12 @@ class OnnxDetectorParams(StageParams):
     )
     score_threshold: float = Field(0.5, ge=0, le=1, description="Score threshold.")
     nms_iou: float = Field(0.3, gt=0, le=1, description="IoU threshold of cv2.dnn.NMSBoxes.")
-    intra_op_threads: int = Field(1, ge=1, description="onnxruntime intra-op threads.")
+    intra_op_threads: int = Field(
+        0,
+        ge=0,
+        description="onnxruntime intra-op threads; 0 = OMP_NUM_THREADS if set (1 in bench"
+        " workers), else the CPU count (at most 4).",
+    )
 
 
 class OnnxDetector(Detector):

@@ -22,7 +22,7 @@ CENTRES = [(100.0, 100.0), (300.0, 200.0), (500.0, 120.0)]
 def test_params_have_defaults_and_reject_unknown_keys() -> None:
     params = EdgeBoxCnnParams()
     assert params.score_threshold == 0.7 and params.nms_iou == 0.3 and params.context == 16.0
-    assert params.intra_op_threads == 1
+    assert params.intra_op_threads == 0
     with pytest.raises(ValidationError):
         EdgeBoxCnnParams(unknown=1)
 

@@ -99,3 +99,13 @@ def test_unexpected_inputs_and_outputs_are_user_errors(tmp_path: Path, make_cons
     with pytest.raises(UserError, match="height"):
         HeadScorer(fixed, input_size=(48, 48))
     assert HeadScorer(dynamic, input_size=(40, 40)).input_size == (40, 40)
+
+
+def test_automatic_threads_follow_omp_num_threads(monkeypatch) -> None:
+    from trackfw_plugins.detectors.head_scorer import resolve_threads
+
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    assert resolve_threads(0) == 1
+    monkeypatch.delenv("OMP_NUM_THREADS")
+    assert 1 <= resolve_threads(0) <= 4
+    assert resolve_threads(3) == 3
