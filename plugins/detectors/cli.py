@@ -45,6 +45,14 @@ def register(train_app: typer.Typer) -> None:
         input_size: Annotated[
             int, typer.Option("--input-size", min=16, help="CNN input side (px).")
         ] = 32,
+        min_crop: Annotated[
+            float,
+            typer.Option(
+                "--min-crop",
+                min=0.0,
+                help="Smallest crop side, px at 1080p (the detector's min_crop must match).",
+            ),
+        ] = 0.0,
     ) -> None:
         """Train the head classifier of the edgebox-cnn detector (needs PyTorch: trackfw[train])."""
         from trackfw.errors import UserError
@@ -74,7 +82,7 @@ def register(train_app: typer.Typer) -> None:
             out,
             epochs=epochs,
             seed=seed,
-            settings=SamplingSettings(input_size=input_size),
+            settings=SamplingSettings(input_size=input_size, min_crop=min_crop),
             hard_negative_rounds=hard_negative_rounds,
             dense_out=dense_out,
             log=typer.echo,

@@ -98,6 +98,12 @@ class EdgeBoxCnnParams(StageParams):
         lt=112,
         description="R-CNN context: px of a 224-px warped frame added around each box.",
     )
+    min_crop: float = Field(
+        0.0,
+        ge=0,
+        description="Smallest crop side, px at 1080p (scaled by height/1080); must match the"
+        " value the model was trained with.",
+    )
     input_size: int = Field(0, ge=0, description="CNN input side (px); 0 = read it from the model.")
     mean: tuple[float, float, float] = Field(
         SHIPPED_MEAN, description="Per-channel mean of [0,1] RGB pixels for the CNN."
@@ -207,6 +213,7 @@ class EdgeBoxCnnDetector(Detector):
     def detect_image(self, image: NDArray[np.uint8]) -> Detections:
         """Detect heads on a ``(H, W, 3)`` uint8 BGR image."""
         context = self.settings.context
+        min_side = self.settings.min_crop * image.shape[0] / 1080.0
         started = time.perf_counter()
         if self.settings.overlap_proposals:
             # OpenCV and onnxruntime release the GIL, so EdgeBoxes runs on a second core while
@@ -218,13 +225,13 @@ class EdgeBoxCnnDetector(Detector):
             pending = self._edge_boxes_thread.submit(self._timed_edge_boxes, image)
             blobs = self.proposer.blob_proposals(image)
             blobs_found = time.perf_counter()
-            blob_scores = self.scorer.score_boxes(image, blobs, context)
+            blob_scores = self.scorer.score_boxes(image, blobs, context, min_side)
             scoring_time = time.perf_counter() - blobs_found
             waited = time.perf_counter()
             edge_boxes, edge_boxes_time = pending.result()
             proposal_time = (blobs_found - started) + (time.perf_counter() - waited)
             scoring_started = time.perf_counter()
-            edge_box_scores = self.scorer.score_boxes(image, edge_boxes, context)
+            edge_box_scores = self.scorer.score_boxes(image, edge_boxes, context, min_side)
             scoring_time += time.perf_counter() - scoring_started
         else:
             edge_boxes, edge_boxes_time = self._timed_edge_boxes(image)
@@ -232,8 +239,8 @@ class EdgeBoxCnnDetector(Detector):
             blobs = self.proposer.blob_proposals(image)
             blobs_found = time.perf_counter()
             proposal_time = blobs_found - started
-            edge_box_scores = self.scorer.score_boxes(image, edge_boxes, context)
-            blob_scores = self.scorer.score_boxes(image, blobs, context)
+            edge_box_scores = self.scorer.score_boxes(image, edge_boxes, context, min_side)
+            blob_scores = self.scorer.score_boxes(image, blobs, context, min_side)
             scoring_time = time.perf_counter() - blobs_found
         boxes = np.concatenate([edge_boxes, blobs])
         scores = np.concatenate([edge_box_scores, blob_scores])

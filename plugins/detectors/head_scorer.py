@@ -48,6 +48,7 @@ def extract_crops(
     boxes: NDArray[np.float64],
     size: tuple[int, int],
     context: float = 16.0,
+    min_side: float = 0.0,
 ) -> NDArray[np.uint8]:
     """Cut boxes (grown by their context) out of a frame and warp them to ``size``.
 
@@ -56,6 +57,8 @@ def extract_crops(
         boxes: ``(N, 4)`` boxes as ``(left, top, width, height)`` in pixels.
         size: ``(height, width)`` of the crops.
         context: R-CNN context in pixels of a 224-px frame (see :func:`context_fraction`).
+        min_side: smallest crop side in frame pixels: a smaller grown box is widened about its
+            centre, so that a tiny head comes with its shoulders and surroundings.
 
     Returns:
         ``(N, height, width, 3)`` uint8 crops; outside the frame the border is replicated.
@@ -66,10 +69,12 @@ def extract_crops(
     if count == 0:
         return crops
     grow = context_fraction(context)
-    lefts = boxes[:, 0] - grow * boxes[:, 2]
-    tops = boxes[:, 1] - grow * boxes[:, 3]
-    rights = boxes[:, 0] + (1.0 + grow) * boxes[:, 2]
-    bottoms = boxes[:, 1] + (1.0 + grow) * boxes[:, 3]
+    widths = np.maximum((1.0 + 2.0 * grow) * boxes[:, 2], min_side)
+    heights = np.maximum((1.0 + 2.0 * grow) * boxes[:, 3], min_side)
+    centre_x = boxes[:, 0] + 0.5 * boxes[:, 2]
+    centre_y = boxes[:, 1] + 0.5 * boxes[:, 3]
+    lefts, rights = centre_x - 0.5 * widths, centre_x + 0.5 * widths
+    tops, bottoms = centre_y - 0.5 * heights, centre_y + 0.5 * heights
     height, width = image.shape[:2]
     # One padded copy of the frame lets every crop be a plain slice.
     overflow = max(0.0, -lefts.min(), -tops.min(), rights.max() - width, bottoms.max() - height)
@@ -274,7 +279,11 @@ class HeadScorer:
         return scores
 
     def score_boxes(
-        self, image: NDArray[np.uint8], boxes: NDArray[np.float64], context: float = 16.0
+        self,
+        image: NDArray[np.uint8],
+        boxes: NDArray[np.float64],
+        context: float = 16.0,
+        min_side: float = 0.0,
     ) -> NDArray[np.float64]:
         """Head probability of each ``(N, 4)`` box of ``image`` (grown by ``context``)."""
-        return self.score_crops(extract_crops(image, boxes, self.input_size, context))
+        return self.score_crops(extract_crops(image, boxes, self.input_size, context, min_side))

@@ -61,6 +61,7 @@ class SamplingSettings:
 
     input_size: int = 32
     context: float = 16.0
+    min_crop: float = 0.0
     positives_per_head: int = 4
     near_misses_per_head: int = 3
     random_per_frame: int = 12
@@ -245,5 +246,6 @@ def sample_crops(
         negatives = rng.choice(negatives, limit, replace=False)
     chosen = np.concatenate([positives, negatives])
     size = (settings.input_size, settings.input_size)
-    crops = extract_crops(frame.image, boxes[chosen], size, settings.context)
+    min_side = settings.min_crop * frame.image.shape[0] / 1080.0
+    crops = extract_crops(frame.image, boxes[chosen], size, settings.context, min_side)
     return crops, labels[chosen].astype(np.uint8)

@@ -109,3 +109,20 @@ def test_automatic_threads_follow_omp_num_threads(monkeypatch) -> None:
     monkeypatch.delenv("OMP_NUM_THREADS")
     assert 1 <= resolve_threads(0) <= 4
     assert resolve_threads(3) == 3
+
+
+def test_min_side_widens_small_crops_about_their_centre() -> None:
+    image = np.zeros((100, 100, 3), dtype=np.uint8)
+    image[45:55, 45:55] = 255  # a 10-px square
+    box = np.array([[45.0, 45.0, 10.0, 10.0]])
+    tight = extract_crops(image, box, (20, 20), context=0.0)
+    wide = extract_crops(image, box, (20, 20), context=0.0, min_side=20.0)
+    assert tight.min() == 255  # the box alone: all square
+    # Twice the side: the square fills the middle half, ground around it, centred.
+    assert wide[0, 10, 10, 0] == 255 and wide[0, 0, 0, 0] == 0 and wide[0, 19, 19, 0] == 0
+    assert np.array_equal(wide[0], wide[0, ::-1, ::-1])
+    large = np.array([[20.0, 20.0, 40.0, 40.0]])
+    np.testing.assert_array_equal(
+        extract_crops(image, large, (20, 20), context=0.0, min_side=20.0),
+        extract_crops(image, large, (20, 20), context=0.0),
+    )
