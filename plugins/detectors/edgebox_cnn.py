@@ -212,9 +212,9 @@ class EdgeBoxCnnDetector(Detector):
 
     def detect_image(self, image: NDArray[np.uint8]) -> Detections:
         """Detect heads on a ``(H, W, 3)`` uint8 BGR image."""
-        context = self.settings.context
-        min_side = self.settings.min_crop * image.shape[0] / 1080.0
+        context, min_crop = self.settings.context, self.settings.min_crop
         started = time.perf_counter()
+        pending = None
         if self.settings.overlap_proposals:
             # OpenCV and onnxruntime release the GIL, so EdgeBoxes runs on a second core while
             # this thread finds and scores the blobs.
@@ -223,32 +223,24 @@ class EdgeBoxCnnDetector(Detector):
                     max_workers=1, thread_name_prefix="edge-boxes"
                 )
             pending = self._edge_boxes_thread.submit(self._timed_edge_boxes, image)
-            blobs = self.proposer.blob_proposals(image)
-            blobs_found = time.perf_counter()
-            blob_scores = self.scorer.score_boxes(image, blobs, context, min_side)
-            scoring_time = time.perf_counter() - blobs_found
-            waited = time.perf_counter()
-            edge_boxes, edge_boxes_time = pending.result()
-            proposal_time = (blobs_found - started) + (time.perf_counter() - waited)
-            scoring_started = time.perf_counter()
-            edge_box_scores = self.scorer.score_boxes(image, edge_boxes, context, min_side)
-            scoring_time += time.perf_counter() - scoring_started
-        else:
-            edge_boxes, edge_boxes_time = self._timed_edge_boxes(image)
-            blobs_started = time.perf_counter()
-            blobs = self.proposer.blob_proposals(image)
-            blobs_found = time.perf_counter()
-            proposal_time = blobs_found - started
-            edge_box_scores = self.scorer.score_boxes(image, edge_boxes, context, min_side)
-            blob_scores = self.scorer.score_boxes(image, blobs, context, min_side)
-            scoring_time = time.perf_counter() - blobs_found
+        blobs = self.proposer.blob_proposals(image)
+        blobs_time = time.perf_counter() - started
+        scoring_started = time.perf_counter()
+        blob_scores = self.scorer.score_boxes(image, blobs, context, min_crop)
+        scoring_time = time.perf_counter() - scoring_started
+        waiting_started = time.perf_counter()
+        edge_boxes, edge_boxes_time = (
+            pending.result() if pending is not None else self._timed_edge_boxes(image)
+        )
+        proposal_time = blobs_time + time.perf_counter() - waiting_started
+        scoring_started = time.perf_counter()
+        edge_box_scores = self.scorer.score_boxes(image, edge_boxes, context, min_crop)
+        scoring_time += time.perf_counter() - scoring_started
         boxes = np.concatenate([edge_boxes, blobs])
         scores = np.concatenate([edge_box_scores, blob_scores])
         self.last_timing = {
             "edge_boxes": edge_boxes_time,
-            "blobs": (blobs_found - started)
-            if self.settings.overlap_proposals
-            else blobs_found - blobs_started,
+            "blobs": blobs_time,
             "proposals": proposal_time,
             "scoring": scoring_time,
             "proposed": len(boxes),

@@ -48,7 +48,7 @@ def extract_crops(
     boxes: NDArray[np.float64],
     size: tuple[int, int],
     context: float = 16.0,
-    min_side: float = 0.0,
+    min_crop: float = 0.0,
 ) -> NDArray[np.uint8]:
     """Cut boxes (grown by their context) out of a frame and warp them to ``size``.
 
@@ -57,8 +57,9 @@ def extract_crops(
         boxes: ``(N, 4)`` boxes as ``(left, top, width, height)`` in pixels.
         size: ``(height, width)`` of the crops.
         context: R-CNN context in pixels of a 224-px frame (see :func:`context_fraction`).
-        min_side: smallest crop side in frame pixels: a smaller grown box is widened about its
-            centre, so that a tiny head comes with its shoulders and surroundings.
+        min_crop: smallest crop side in px at 1080p (scaled by the frame height / 1080): a
+            smaller grown box is widened about its centre, so that a tiny head comes with its
+            shoulders and surroundings.
 
     Returns:
         ``(N, height, width, 3)`` uint8 crops; outside the frame the border is replicated.
@@ -69,6 +70,7 @@ def extract_crops(
     if count == 0:
         return crops
     grow = context_fraction(context)
+    min_side = min_crop * image.shape[0] / 1080.0
     widths = np.maximum((1.0 + 2.0 * grow) * boxes[:, 2], min_side)
     heights = np.maximum((1.0 + 2.0 * grow) * boxes[:, 3], min_side)
     centre_x = boxes[:, 0] + 0.5 * boxes[:, 2]
@@ -283,7 +285,7 @@ class HeadScorer:
         image: NDArray[np.uint8],
         boxes: NDArray[np.float64],
         context: float = 16.0,
-        min_side: float = 0.0,
+        min_crop: float = 0.0,
     ) -> NDArray[np.float64]:
-        """Head probability of each ``(N, 4)`` box of ``image`` (grown by ``context``)."""
-        return self.score_crops(extract_crops(image, boxes, self.input_size, context, min_side))
+        """Head probability of each ``(N, 4)`` box of ``image`` (see :func:`extract_crops`)."""
+        return self.score_crops(extract_crops(image, boxes, self.input_size, context, min_crop))

@@ -246,6 +246,5 @@ def sample_crops(
         negatives = rng.choice(negatives, limit, replace=False)
     chosen = np.concatenate([positives, negatives])
     size = (settings.input_size, settings.input_size)
-    min_side = settings.min_crop * frame.image.shape[0] / 1080.0
-    crops = extract_crops(frame.image, boxes[chosen], size, settings.context, min_side)
+    crops = extract_crops(frame.image, boxes[chosen], size, settings.context, settings.min_crop)
     return crops, labels[chosen].astype(np.uint8)

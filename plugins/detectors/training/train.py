@@ -238,8 +238,7 @@ def mine_hard_negatives(
     for frame in frames:
         boxes = proposer.propose(frame.image)
         boxes = boxes[label_boxes(boxes, frame.heads.reshape(-1, 3)) == 0]
-        min_side = settings.min_crop * frame.image.shape[0] / 1080.0
-        crops = extract_crops(frame.image, boxes, size, settings.context, min_side)
+        crops = extract_crops(frame.image, boxes, size, settings.context, settings.min_crop)
         scores = scorer.score_crops(crops)
         strongest = np.argsort(-scores)[:per_frame]
         mined.append(crops[strongest[scores[strongest] >= threshold]])

@@ -116,13 +116,14 @@ def test_min_side_widens_small_crops_about_their_centre() -> None:
     image[45:55, 45:55] = 255  # a 10-px square
     box = np.array([[45.0, 45.0, 10.0, 10.0]])
     tight = extract_crops(image, box, (20, 20), context=0.0)
-    wide = extract_crops(image, box, (20, 20), context=0.0, min_side=20.0)
+    # 216 px at 1080p is 20 px on this 100-px-high frame.
+    wide = extract_crops(image, box, (20, 20), context=0.0, min_crop=216.0)
     assert tight.min() == 255  # the box alone: all square
     # Twice the side: the square fills the middle half, ground around it, centred.
     assert wide[0, 10, 10, 0] == 255 and wide[0, 0, 0, 0] == 0 and wide[0, 19, 19, 0] == 0
     assert np.array_equal(wide[0], wide[0, ::-1, ::-1])
     large = np.array([[20.0, 20.0, 40.0, 40.0]])
     np.testing.assert_array_equal(
-        extract_crops(image, large, (20, 20), context=0.0, min_side=20.0),
+        extract_crops(image, large, (20, 20), context=0.0, min_crop=216.0),
         extract_crops(image, large, (20, 20), context=0.0),
     )
