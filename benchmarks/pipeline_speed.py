@@ -22,7 +22,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-STAGES = ("detector", "classifier", "tracker", "gap_matcher")
+from trackfw.stages import STAGE_KINDS
 
 
 def video_folders(source: Path, count: int) -> list[Path]:
@@ -42,7 +42,7 @@ def main() -> None:
     arguments = parser.parse_args()
     frames = 0
     seconds = 0.0
-    stage_ms: dict[str, list[tuple[float, int]]] = {stage: [] for stage in STAGES}
+    stage_ms: dict[str, list[tuple[float, int]]] = {stage: [] for stage in STAGE_KINDS}
     # The console script installed beside this interpreter: exactly the user's command.
     trackfw = str(Path(sys.executable).with_name("trackfw"))
     with tempfile.TemporaryDirectory() as scratch:
@@ -67,7 +67,6 @@ def main() -> None:
             summary = json.loads(summaries[0].read_text())
             frames += summary["n_frames"]
             seconds += summary["seconds"]
-            intervals = max(int(summary["intervals"]), 0)
             print(
                 f"{video.name}: {summary['n_frames']} frames, {summary['frames_per_second']:.2f} fps,"
                 + "".join(
@@ -75,10 +74,10 @@ def main() -> None:
                     for stage, value in summary["ms_per_frame"].items()
                 )
             )
-            for stage in STAGES:
+            for stage in STAGE_KINDS:
                 value = summary["ms_per_frame"].get(stage)
                 if value is not None:
-                    calls = intervals if stage == "gap_matcher" else summary["n_frames"]
+                    calls = summary["intervals"] if stage == "gap_matcher" else summary["n_frames"]
                     stage_ms[stage].append((value, max(calls, 1)))
     print(
         f"{arguments.pipeline} on {arguments.input}: {frames} frames in {seconds:.1f} s"
