@@ -1,4 +1,4 @@
-"""Small box helpers shared by the detectors of this plugin: NMS, head points from body boxes."""
+"""Small helpers shared by the detectors of this plugin: NMS, head points, a frame's pixels."""
 
 from __future__ import annotations
 
@@ -6,7 +6,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from trackfw.records import Detections
+from trackfw.errors import UserError
+from trackfw.records import Detections, FrameData
 
 #: Head point of a full-body box, relative to its top: ``(left + w/2, top + 0.08 h)``.
 BODY_HEAD_RATIO = 0.08
@@ -109,3 +110,18 @@ def detections_from_boxes(
     """Detections with the given boxes, scores and head points taken as ``point``."""
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     return Detections(points=head_points(boxes, point, body_ratio), scores=scores, boxes=boxes)
+
+
+def frame_pixels(frame: FrameData, detector: str) -> NDArray[np.uint8]:
+    """The decoded ``(H, W, 3)`` image of ``frame``; a frame without one is a UserError.
+
+    Args:
+        frame: the frame handed to a detector's ``detect``.
+        detector: the detector's registered name, for the message.
+    """
+    if frame.image is None:
+        raise UserError(
+            f"{frame.video.path}: frame {frame.t} has no pixels; the {detector} detector needs"
+            " decoded frames."
+        )
+    return frame.image

@@ -21,11 +21,11 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field
 
-from trackfw.errors import UserError
 from trackfw.records import Detections, FrameData
 from trackfw.stages import Detector, StageParams
 from trackfw_plugins.detectors.boxes import (
     detections_from_boxes,
+    frame_pixels,
     non_maximum_suppression,
     suppress_nested_centres,
 )
@@ -253,9 +253,4 @@ class EdgeBoxCnnDetector(Detector):
 
     def detect(self, frame: FrameData) -> Detections:
         """Detect heads on ``frame`` (its image must be decoded)."""
-        if frame.image is None:
-            raise UserError(
-                f"{frame.video.path}: frame {frame.t} has no pixels; the edgebox-cnn detector"
-                " needs decoded frames."
-            )
-        return self.detect_image(frame.image)
+        return self.detect_image(frame_pixels(frame, self.name))

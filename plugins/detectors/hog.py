@@ -10,10 +10,9 @@ import cv2
 import numpy as np
 from pydantic import Field
 
-from trackfw.errors import UserError
 from trackfw.records import Detections, FrameData
 from trackfw.stages import Detector, StageParams
-from trackfw_plugins.detectors.boxes import detections_from_boxes
+from trackfw_plugins.detectors.boxes import detections_from_boxes, frame_pixels
 
 
 class HogParams(StageParams):
@@ -86,9 +85,4 @@ class HogDetector(Detector):
 
     def detect(self, frame: FrameData) -> Detections:
         """Detect people on ``frame`` (its image must be decoded)."""
-        if frame.image is None:
-            raise UserError(
-                f"{frame.video.path}: frame {frame.t} has no pixels; the hog detector needs"
-                " decoded frames."
-            )
-        return self.detect_image(frame.image)
+        return self.detect_image(frame_pixels(frame, self.name))

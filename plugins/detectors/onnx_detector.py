@@ -28,7 +28,11 @@ from pydantic import Field
 from trackfw.errors import UserError
 from trackfw.records import Detections, FrameData
 from trackfw.stages import Detector, StageParams
-from trackfw_plugins.detectors.boxes import detections_from_boxes, non_maximum_suppression
+from trackfw_plugins.detectors.boxes import (
+    detections_from_boxes,
+    frame_pixels,
+    non_maximum_suppression,
+)
 from trackfw_plugins.detectors.head_scorer import context_fraction, open_onnx_session
 
 FloatArray = NDArray[np.float64]
@@ -251,12 +255,7 @@ class OnnxDetector(Detector):
 
     def detect(self, frame: FrameData) -> Detections:
         """Detect heads on ``frame`` (its image must be decoded)."""
-        if frame.image is None:
-            raise UserError(
-                f"{frame.video.path}: frame {frame.t} has no pixels; the onnx detector needs"
-                " decoded frames."
-            )
-        return self.detect_image(frame.image)
+        return self.detect_image(frame_pixels(frame, self.name))
 
 
 def _static(value: object) -> int:
