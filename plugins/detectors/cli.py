@@ -50,7 +50,7 @@ def register(train_app: typer.Typer) -> None:
             typer.Option(
                 "--min-crop",
                 min=0.0,
-                help="Smallest crop side, px at 1080p (the detector's min_crop must match).",
+                help="Smallest crop side, px at 1080p (recorded in the model; the detector reads it).",
             ),
         ] = 0.0,
     ) -> None:

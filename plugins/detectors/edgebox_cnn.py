@@ -10,6 +10,7 @@ are scored, so that a frame uses two cores; the result is the same as in sequenc
 
 from __future__ import annotations
 
+import math
 import time
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack
@@ -21,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field
 
+from trackfw.errors import UserError
 from trackfw.records import Detections, FrameData
 from trackfw.stages import Detector, StageParams
 from trackfw_plugins.detectors.boxes import (
@@ -92,17 +94,18 @@ class EdgeBoxCnnParams(StageParams):
     max_head_size: float = Field(
         120.0, gt=0, description="Largest box side kept, in px at 1080p (scaled by height/1080)."
     )
-    context: float = Field(
-        16.0,
+    context: float | None = Field(
+        None,
         ge=0,
         lt=112,
-        description="R-CNN context: px of a 224-px warped frame added around each box.",
+        description="R-CNN context: px of a 224-px warped frame added around each box; None = the"
+        " value the model records (16 when it records none).",
     )
-    min_crop: float = Field(
-        0.0,
+    min_crop: float | None = Field(
+        None,
         ge=0,
-        description="Smallest crop side, px at 1080p (scaled by height/1080); must match the"
-        " value the model was trained with.",
+        description="Smallest crop side, px at 1080p (scaled by height/1080); None = the value the"
+        " model records (0 when it records none). It must match the model's training.",
     )
     input_size: int = Field(0, ge=0, description="CNN input side (px); 0 = read it from the model.")
     mean: tuple[float, float, float] = Field(
@@ -160,6 +163,25 @@ class EdgeBoxCnnParams(StageParams):
         )
 
 
+def _crop_setting(
+    model_path: Path, name: str, configured: float | None, scorer: HeadScorer, default: float
+) -> float:
+    """A crop setting: the configured value, else the model's record, else ``default``.
+
+    Raises:
+        UserError: the configured value differs from the one the model was trained with.
+    """
+    recorded = scorer.crop_settings.get(name)
+    if configured is None:
+        return recorded if recorded is not None else default
+    if recorded is not None and not math.isclose(configured, recorded):
+        raise UserError(
+            f"{model_path}: the model was trained with {name} {recorded:g}, but the detector sets"
+            f" {name} {configured:g}; leave {name} unset to use the model's value."
+        )
+    return configured
+
+
 class EdgeBoxCnnDetector(Detector):
     """EdgeBoxes (+ blob) proposals scored by a small CNN head classifier (the paper's detector)."""
 
@@ -189,6 +211,8 @@ class EdgeBoxCnnDetector(Detector):
             intra_op_threads=settings.intra_op_threads,
             batch_size=settings.batch_size,
         )
+        self.context = _crop_setting(model_path, "context", settings.context, self.scorer, 16.0)
+        self.min_crop = _crop_setting(model_path, "min_crop", settings.min_crop, self.scorer, 0.0)
         self.proposer = HeadProposer(settings.proposal_settings())
         self._edge_boxes_thread: ThreadPoolExecutor | None = None
         #: Seconds of the last frame's steps (for benchmarks): EdgeBoxes, blobs, scoring, and
@@ -212,7 +236,7 @@ class EdgeBoxCnnDetector(Detector):
 
     def detect_image(self, image: NDArray[np.uint8]) -> Detections:
         """Detect heads on a ``(H, W, 3)`` uint8 BGR image."""
-        context, min_crop = self.settings.context, self.settings.min_crop
+        context, min_crop = self.context, self.min_crop
         started = time.perf_counter()
         pending = None
         if self.settings.overlap_proposals:

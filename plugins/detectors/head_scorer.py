@@ -28,6 +28,10 @@ OutputForm = Literal["auto", "logit", "logits2", "probability"]
 #: The network frame in which R-CNN (Girshick et al. 2014) measures its 16 px context.
 RCNN_FRAME = 224.0
 
+#: ONNX metadata keys under which ``trackfw train detector`` records how its crops were cut, so
+#: that the detector cuts them the same way (a model scores badly on crops it was not trained on).
+CROP_METADATA = {"context": "trackfw.context", "min_crop": "trackfw.min_crop"}
+
 
 def context_fraction(context: float) -> float:
     """The share of the box size added on each side for R-CNN-style ``context`` pixels.
@@ -173,6 +177,21 @@ def open_onnx_session(
         ) from error
 
 
+def _crop_metadata(path: Path, session: onnxruntime.InferenceSession) -> dict[str, float]:
+    """The crop settings a model records in its metadata (see :data:`CROP_METADATA`)."""
+    stored = session.get_modelmeta().custom_metadata_map
+    settings: dict[str, float] = {}
+    for name, key in CROP_METADATA.items():
+        if key in stored:
+            try:
+                settings[name] = float(stored[key])
+            except ValueError:
+                raise UserError(
+                    f"{path}: metadata {key} is {stored[key]!r}; expected a number."
+                ) from None
+    return settings
+
+
 class HeadScorer:
     """An onnxruntime session that maps head crops to head probabilities.
 
@@ -188,6 +207,10 @@ class HeadScorer:
             logits2).
         intra_op_threads: onnxruntime threads inside one operator (0: see :func:`resolve_threads`).
         batch_size: crops per onnxruntime call.
+
+    Attributes:
+        crop_settings: ``context`` and ``min_crop`` as the model's metadata records them (empty
+            for a model that records none, e.g. one not trained by trackfw).
 
     Raises:
         UserError: the file is missing or damaged, or its inputs/outputs are not as expected.
@@ -244,6 +267,7 @@ class HeadScorer:
         if output_form == "auto":
             output_form = "logits2" if last == 2 else "logit"
         self.path = path
+        self.crop_settings = _crop_metadata(path, self.session)
         self.input_name = inputs[0].name
         self.output_name = outputs[0].name
         self.input_size = (int(input_size[0]), int(input_size[1]))

@@ -21,7 +21,12 @@ from torch import nn
 
 from trackfw.errors import UserError
 from trackfw_plugins.detectors.edgebox_cnn import SHIPPED_MEAN, SHIPPED_STD
-from trackfw_plugins.detectors.head_scorer import HeadScorer, crops_to_tensor, extract_crops
+from trackfw_plugins.detectors.head_scorer import (
+    CROP_METADATA,
+    HeadScorer,
+    crops_to_tensor,
+    extract_crops,
+)
 from trackfw_plugins.detectors.proposals import HeadProposer, ProposalSettings
 from trackfw_plugins.detectors.training.model import DenseHeadNet, HeadNet
 from trackfw_plugins.detectors.training.sampling import (
@@ -159,8 +164,14 @@ def train_classifier(
     return model, report
 
 
-def export_onnx(model: HeadNet, path: Path, input_size: int) -> None:
-    """Write ``model`` as ONNX: input ``crops`` ``(N, 3, s, s)``, output ``logit`` ``(N, 1)``."""
+def export_onnx(
+    model: HeadNet, path: Path, input_size: int, crop_settings: SamplingSettings | None = None
+) -> None:
+    """Write ``model`` as ONNX: input ``crops`` ``(N, 3, s, s)``, output ``logit`` ``(N, 1)``.
+
+    With ``crop_settings``, their context and smallest crop side go into the model's metadata
+    (:data:`~trackfw_plugins.detectors.head_scorer.CROP_METADATA`), where the detector reads them.
+    """
     model.eval()
     example = torch.zeros(1, 3, input_size, input_size)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -178,6 +189,15 @@ def export_onnx(model: HeadNet, path: Path, input_size: int) -> None:
             opset_version=17,
             dynamo=False,
         )
+    if crop_settings is not None:
+        import onnx  # the train extra's; imported here so that export stays optional
+
+        exported = onnx.load(str(temporary))
+        recorded = {"context": crop_settings.context, "min_crop": crop_settings.min_crop}
+        for name, key in CROP_METADATA.items():
+            entry = exported.metadata_props.add()
+            entry.key, entry.value = key, repr(float(recorded[name]))
+        onnx.save(exported, str(temporary))
     temporary.replace(path)
 
 
@@ -267,7 +287,7 @@ def train_detector(
     crops, labels = collect_crops(frame_list, settings, seed)
     log(f"crops: {int(labels.sum())} heads, {int(len(labels) - labels.sum())} background")
     model, report = train_classifier(crops, labels, epochs=epochs, seed=seed, log=log)
-    export_onnx(model, out, settings.input_size)
+    export_onnx(model, out, settings.input_size, settings)
     for round_index in range(hard_negative_rounds):
         mined = mine_hard_negatives(out, frame_list, settings, seed=seed + round_index)
         log(f"hard negatives, round {round_index + 1}: {len(mined)} crops")
@@ -276,7 +296,7 @@ def train_detector(
         crops = np.concatenate([crops, mined])
         labels = np.concatenate([labels, np.zeros(len(mined), dtype=np.uint8)])
         model, report = train_classifier(crops, labels, epochs=epochs, seed=seed, log=log)
-        export_onnx(model, out, settings.input_size)
+        export_onnx(model, out, settings.input_size, settings)
     report.positives = int(labels.sum())
     report.negatives = int(len(labels) - labels.sum())
     if dense_out is not None:

@@ -21,7 +21,8 @@ CENTRES = [(100.0, 100.0), (300.0, 200.0), (500.0, 120.0)]
 
 def test_params_have_defaults_and_reject_unknown_keys() -> None:
     params = EdgeBoxCnnParams()
-    assert params.score_threshold == 0.7 and params.nms_iou == 0.3 and params.context == 16.0
+    assert params.score_threshold == 0.7 and params.nms_iou == 0.3
+    assert params.context is None and params.min_crop is None  # read from the model
     assert params.intra_op_threads == 0
     with pytest.raises(ValidationError):
         EdgeBoxCnnParams(unknown=1)
@@ -31,6 +32,44 @@ def test_shipped_model_loads() -> None:
     assert shipped_model_path().is_file()
     detector = EdgeBoxCnnDetector()
     assert detector.scorer.input_size[0] in (32, 48) and detector.needs_pixels
+    # The shipped model records the crops it was trained on (models/README.md).
+    assert detector.scorer.crop_settings == {"context": 16.0, "min_crop": 16.0}
+    assert (detector.context, detector.min_crop) == (16.0, 16.0)
+
+
+def _with_crop_metadata(path: Path, source: Path, **values: str) -> Path:
+    onnx = pytest.importorskip("onnx")
+    model = onnx.load(str(source))
+    for name, value in values.items():
+        entry = model.metadata_props.add()
+        entry.key, entry.value = f"trackfw.{name}", value
+    onnx.save(model, str(path))
+    return path
+
+
+def test_crop_settings_come_from_the_model_unless_configured(tmp_path: Path, make_scorer) -> None:
+    plain = make_scorer(tmp_path / "plain.onnx")
+    detector = EdgeBoxCnnDetector(EdgeBoxCnnParams(model=str(plain)))
+    assert (detector.context, detector.min_crop) == (16.0, 0.0)  # no record: the defaults
+    configured = EdgeBoxCnnDetector(EdgeBoxCnnParams(model=str(plain), min_crop=12, context=8))
+    assert (configured.context, configured.min_crop) == (8.0, 12.0)
+    recorded = _with_crop_metadata(tmp_path / "r.onnx", plain, context="10.0", min_crop="24.0")
+    detector = EdgeBoxCnnDetector(EdgeBoxCnnParams(model=str(recorded)))
+    assert (detector.context, detector.min_crop) == (10.0, 24.0)
+    same = EdgeBoxCnnDetector(EdgeBoxCnnParams(model=str(recorded), min_crop=24))
+    assert same.min_crop == 24.0
+
+
+def test_crop_setting_that_contradicts_the_model_fails_at_construction(
+    tmp_path: Path, make_scorer
+) -> None:
+    plain = make_scorer(tmp_path / "plain.onnx")
+    recorded = _with_crop_metadata(tmp_path / "r.onnx", plain, min_crop="16.0")
+    with pytest.raises(UserError, match=r"r\.onnx: the model was trained with min_crop 16"):
+        EdgeBoxCnnDetector(EdgeBoxCnnParams(model=str(recorded), min_crop=0))
+    damaged = _with_crop_metadata(tmp_path / "d.onnx", plain, context="wide")
+    with pytest.raises(UserError, match=r"d\.onnx: metadata trackfw.context is 'wide'"):
+        EdgeBoxCnnDetector(EdgeBoxCnnParams(model=str(damaged)))
 
 
 @pytest.mark.parametrize("content", [None, b"", b"\x00\x01 not onnx"])

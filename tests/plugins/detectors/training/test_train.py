@@ -12,6 +12,7 @@ from trackfw_plugins.detectors.head_scorer import HeadScorer
 pytest.importorskip("torch")
 pytest.importorskip("onnx")
 
+from trackfw_plugins.detectors.training.sampling import SamplingSettings
 from trackfw_plugins.detectors.training.train import (
     PARITY_TOLERANCE,
     export_onnx,
@@ -46,6 +47,16 @@ def test_trains_exports_and_matches_onnxruntime(tmp_path: Path) -> None:
     test_crops, test_labels = _toy_crops(64, seed=1)
     scores = scorer.score_crops(test_crops)
     assert np.mean((scores >= 0.5) == (test_labels == 1)) >= 0.9
+    assert scorer.crop_settings == {}  # exported without crop settings: nothing recorded
+
+
+def test_export_records_the_crop_settings(tmp_path: Path) -> None:
+    crops, labels = _toy_crops(64, seed=0)
+    model, _report = train_classifier(crops, labels, epochs=1, seed=0, log=lambda _line: None)
+    path = tmp_path / "head.onnx"
+    export_onnx(model, path, 32, SamplingSettings(context=12.0, min_crop=20.0))
+    assert HeadScorer(path).crop_settings == {"context": 12.0, "min_crop": 20.0}
+    assert parity_difference(model, path, crops[:16]) <= PARITY_TOLERANCE
 
 
 def test_dense_export_scores_windows_like_the_crop_model(tmp_path: Path) -> None:
