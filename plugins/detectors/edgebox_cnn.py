@@ -4,13 +4,13 @@ Pipeline per frame: EdgeBoxes on the frame reduced to ``work_width`` (plus, [OUR
 proposals, see :mod:`.blob_proposals`) → keep head-sized boxes → grow by R-CNN context, warp to
 the CNN input and score in batches (onnxruntime) → threshold 0.7 → ``cv2.dnn.NMSBoxes(boxes,
 scores, 0.7, 0.3)`` → drop boxes centred on a better box ([OURS]) → detection point = box
-centre. ``blob_width: 0`` gives the paper's EdgeBoxes-only proposals. By default EdgeBoxes runs in a second thread while the blob proposals
-are scored, so that a frame uses two cores; the result is the same as in sequence.
+centre. ``blob_width: 0`` gives the paper's EdgeBoxes-only proposals. By default EdgeBoxes runs
+in a second thread while the blob proposals are scored, so that a frame uses two cores; the
+result is the same as in sequence.
 """
 
 from __future__ import annotations
 
-import math
 import time
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack
@@ -22,7 +22,6 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field
 
-from trackfw.errors import UserError
 from trackfw.records import Detections, FrameData
 from trackfw.stages import Detector, StageParams
 from trackfw_plugins.detectors.boxes import (
@@ -163,25 +162,6 @@ class EdgeBoxCnnParams(StageParams):
         )
 
 
-def _crop_setting(
-    model_path: Path, name: str, configured: float | None, scorer: HeadScorer, default: float
-) -> float:
-    """A crop setting: the configured value, else the model's record, else ``default``.
-
-    Raises:
-        UserError: the configured value differs from the one the model was trained with.
-    """
-    recorded = scorer.crop_settings.get(name)
-    if configured is None:
-        return recorded if recorded is not None else default
-    if recorded is not None and not math.isclose(configured, recorded):
-        raise UserError(
-            f"{model_path}: the model was trained with {name} {recorded:g}, but the detector sets"
-            f" {name} {configured:g}; leave {name} unset to use the model's value."
-        )
-    return configured
-
-
 class EdgeBoxCnnDetector(Detector):
     """EdgeBoxes (+ blob) proposals scored by a small CNN head classifier (the paper's detector)."""
 
@@ -210,9 +190,9 @@ class EdgeBoxCnnDetector(Detector):
             output_form=settings.output_form,
             intra_op_threads=settings.intra_op_threads,
             batch_size=settings.batch_size,
+            context=settings.context,
+            min_crop=settings.min_crop,
         )
-        self.context = _crop_setting(model_path, "context", settings.context, self.scorer, 16.0)
-        self.min_crop = _crop_setting(model_path, "min_crop", settings.min_crop, self.scorer, 0.0)
         self.proposer = HeadProposer(settings.proposal_settings())
         self._edge_boxes_thread: ThreadPoolExecutor | None = None
         #: Seconds of the last frame's steps (for benchmarks): EdgeBoxes, blobs, scoring, and
@@ -226,6 +206,16 @@ class EdgeBoxCnnDetector(Detector):
             "proposed": 0,
         }
 
+    @property
+    def context(self) -> float:
+        """The R-CNN context crops are cut with (the model's, unless configured)."""
+        return self.scorer.context
+
+    @property
+    def min_crop(self) -> float:
+        """The smallest crop side, px at 1080p (the model's, unless configured)."""
+        return self.scorer.min_crop
+
     def proposals(self, image: NDArray[np.uint8]) -> NDArray[np.float64]:
         """Head-sized proposals of a full frame, ``(N, 4)`` in frame pixels."""
         return self.proposer.propose(image)
@@ -236,7 +226,6 @@ class EdgeBoxCnnDetector(Detector):
 
     def detect_image(self, image: NDArray[np.uint8]) -> Detections:
         """Detect heads on a ``(H, W, 3)`` uint8 BGR image."""
-        context, min_crop = self.context, self.min_crop
         started = time.perf_counter()
         pending = None
         if self.settings.overlap_proposals:
@@ -250,7 +239,7 @@ class EdgeBoxCnnDetector(Detector):
         blobs = self.proposer.blob_proposals(image)
         blobs_time = time.perf_counter() - started
         scoring_started = time.perf_counter()
-        blob_scores = self.scorer.score_boxes(image, blobs, context, min_crop)
+        blob_scores = self.scorer.score_boxes(image, blobs)
         scoring_time = time.perf_counter() - scoring_started
         waiting_started = time.perf_counter()
         edge_boxes, edge_boxes_time = (
@@ -258,7 +247,7 @@ class EdgeBoxCnnDetector(Detector):
         )
         proposal_time = blobs_time + time.perf_counter() - waiting_started
         scoring_started = time.perf_counter()
-        edge_box_scores = self.scorer.score_boxes(image, edge_boxes, context, min_crop)
+        edge_box_scores = self.scorer.score_boxes(image, edge_boxes)
         scoring_time += time.perf_counter() - scoring_started
         boxes = np.concatenate([edge_boxes, blobs])
         scores = np.concatenate([edge_box_scores, blob_scores])

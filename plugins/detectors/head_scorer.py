@@ -192,6 +192,24 @@ def _crop_metadata(path: Path, session: onnxruntime.InferenceSession) -> dict[st
     return settings
 
 
+def _crop_setting(
+    path: Path, name: str, configured: float | None, recorded: float | None, default: float
+) -> float:
+    """A crop setting: the configured value, else the model's record, else ``default``.
+
+    Raises:
+        UserError: the configured value differs from the one the model was trained with.
+    """
+    if configured is None:
+        return recorded if recorded is not None else default
+    if recorded is not None and not math.isclose(configured, recorded):
+        raise UserError(
+            f"{path}: the model was trained with {name} {recorded:g}, but the detector sets"
+            f" {name} {configured:g}; leave {name} unset to use the model's value."
+        )
+    return configured
+
+
 class HeadScorer:
     """An onnxruntime session that maps head crops to head probabilities.
 
@@ -207,10 +225,16 @@ class HeadScorer:
             logits2).
         intra_op_threads: onnxruntime threads inside one operator (0: see :func:`resolve_threads`).
         batch_size: crops per onnxruntime call.
+        context: R-CNN context of :meth:`score_boxes` (see :func:`extract_crops`); None = the
+            value the model records, 16 when it records none.
+        min_crop: smallest crop side of :meth:`score_boxes`, px at 1080p; None = the value the
+            model records, 0 when it records none.
 
     Attributes:
         crop_settings: ``context`` and ``min_crop`` as the model's metadata records them (empty
             for a model that records none, e.g. one not trained by trackfw).
+        context: the context :meth:`score_boxes` cuts crops with.
+        min_crop: the smallest crop side :meth:`score_boxes` cuts crops with.
 
     Raises:
         UserError: the file is missing or damaged, or its inputs/outputs are not as expected.
@@ -226,6 +250,8 @@ class HeadScorer:
         output_form: OutputForm = "auto",
         intra_op_threads: int = 0,
         batch_size: int = 64,
+        context: float | None = None,
+        min_crop: float | None = None,
     ) -> None:
         path = Path(model_path)
         self.session = open_onnx_session(path, intra_op_threads, "an ONNX head classifier")
@@ -268,6 +294,9 @@ class HeadScorer:
             output_form = "logits2" if last == 2 else "logit"
         self.path = path
         self.crop_settings = _crop_metadata(path, self.session)
+        recorded = self.crop_settings
+        self.context = _crop_setting(path, "context", context, recorded.get("context"), 16.0)
+        self.min_crop = _crop_setting(path, "min_crop", min_crop, recorded.get("min_crop"), 0.0)
         self.input_name = inputs[0].name
         self.output_name = outputs[0].name
         self.input_size = (int(input_size[0]), int(input_size[1]))
@@ -305,11 +334,9 @@ class HeadScorer:
         return scores
 
     def score_boxes(
-        self,
-        image: NDArray[np.uint8],
-        boxes: NDArray[np.float64],
-        context: float = 16.0,
-        min_crop: float = 0.0,
+        self, image: NDArray[np.uint8], boxes: NDArray[np.float64]
     ) -> NDArray[np.float64]:
-        """Head probability of each ``(N, 4)`` box of ``image`` (see :func:`extract_crops`)."""
-        return self.score_crops(extract_crops(image, boxes, self.input_size, context, min_crop))
+        """Head probability of each ``(N, 4)`` box of ``image``, cut as the model was trained."""
+        return self.score_crops(
+            extract_crops(image, boxes, self.input_size, self.context, self.min_crop)
+        )

@@ -190,13 +190,12 @@ def export_onnx(
             dynamo=False,
         )
     if crop_settings is not None:
-        import onnx  # the train extra's; imported here so that export stays optional
+        import onnx  # in the train extra, beside torch
 
         exported = onnx.load(str(temporary))
-        recorded = {"context": crop_settings.context, "min_crop": crop_settings.min_crop}
         for name, key in CROP_METADATA.items():
             entry = exported.metadata_props.add()
-            entry.key, entry.value = key, repr(float(recorded[name]))
+            entry.key, entry.value = key, repr(float(getattr(crop_settings, name)))
         onnx.save(exported, str(temporary))
     temporary.replace(path)
 
