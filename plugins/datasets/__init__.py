@@ -26,10 +26,10 @@ def trackfw_register_inputs(registry: Registry) -> None:
 def trackfw_register_commands(app: Any) -> None:
     """Add the ``dataset`` command group."""
     from trackfw.cli import command_group
-    from trackfw_plugins.datasets import check, wear
+    from trackfw_plugins.datasets import check, wear_cli
     from trackfw_plugins.datasets.synth import cli as synth_cli
 
     dataset_app = command_group(app, "dataset", "Make or check a wearable-camera dataset.")
     synth_cli.register(dataset_app)
-    wear.register(dataset_app)
+    wear_cli.register(dataset_app)
     check.register(dataset_app)

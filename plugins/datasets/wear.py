@@ -1,4 +1,4 @@
-"""``trackfw dataset wear``: a virtual wearer over a real MOTChallenge sequence.
+"""A virtual wearer over a real MOTChallenge sequence (the command is in :mod:`.wear_cli`).
 
 Every frame of the sequence is seen through a head-worn camera whose pose changes smoothly
 (head sway, walking bob) within a segment and jumps to a clearly different pose after each
@@ -28,17 +28,15 @@ import csv
 import io
 import math
 import os
-import re
 import shutil
 import zlib
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import typer
 
 from trackfw.atomic import atomic_open, write_text
 from trackfw.dataset import (
@@ -612,84 +610,3 @@ def generate_dataset(
             raise
         written.append(final)
     return written
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    """``"640x480"`` -> ``(640, 480)``.
-
-    >>> parse_size("320x240")
-    (320, 240)
-    """
-    match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
-    if match is None or min(int(match[1]), int(match[2])) < 16:
-        raise UserError(
-            f"--size is {text!r}; expected WIDTHxHEIGHT like 640x480, each at least 16."
-        )
-    return int(match[1]), int(match[2])
-
-
-def wear_command(
-    mot: Annotated[
-        Path, typer.Option("--mot", help="MOTChallenge sequence folder (img1/ + gt/gt.txt).")
-    ],
-    out: Annotated[Path, typer.Option("--out", help="Dataset folder to write.")],
-    seed: Annotated[
-        int, typer.Option(help="Random seed; the same seed gives the same videos.")
-    ] = 0,
-    videos: Annotated[int, typer.Option(help="Videos to make from the sequence.")] = 1,
-    intervals: Annotated[
-        int | None, typer.Option(help="Info-less intervals per video (default: one per 80 frames).")
-    ] = None,
-    frame_format: Annotated[
-        FrameFormat, typer.Option("--format", help="video.mp4 (mp4v) or img1/ JPEGs.")
-    ] = FrameFormat.mp4,
-    size: Annotated[
-        str | None, typer.Option(help="Output WIDTHxHEIGHT (default: the sequence's).")
-    ] = None,
-    min_length: Annotated[int, typer.Option(help="Shortest interval, frames.")] = 15,
-    max_length: Annotated[int, typer.Option(help="Longest interval, frames.")] = 60,
-    force: Annotated[
-        bool, typer.Option(help="Write into a non-empty --out, replacing same-name videos.")
-    ] = False,
-) -> None:
-    """Make virtual-wearer videos (sway, pose jumps, sky/group/path intervals) of a MOT sequence."""
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
-
-    if intervals is not None and intervals < 1:
-        raise UserError(f"--intervals is {intervals}; expected at least 1.")
-    if not 3 <= min_length <= max_length:
-        raise UserError(
-            f"--min-length {min_length} / --max-length {max_length}; expected 3 <= min <= max."
-        )
-    settings = WearSettings(
-        n_intervals=intervals,
-        min_interval=min_length,
-        max_interval=max_length,
-        output_size=parse_size(size) if size else None,
-        frame_format=frame_format,
-    )
-    console = Console(stderr=True)
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        console=console,
-        transient=True,
-    ) as bar:
-        tasks: dict[str, Any] = {}
-
-        def report(name: str, done: int, total: int) -> None:
-            if name not in tasks:
-                tasks[name] = bar.add_task(name, total=total)
-            bar.update(tasks[name], completed=done)
-
-        written = generate_dataset(mot, out, seed, videos, settings, force, report)
-    for folder in written:
-        console.print(f"wrote {folder}")
-    console.print(f"previews in {out / PREVIEW_FOLDER}")
-
-
-def register(dataset_app: typer.Typer) -> None:
-    """Add ``wear`` to the ``trackfw dataset`` command group."""
-    dataset_app.command("wear")(wear_command)

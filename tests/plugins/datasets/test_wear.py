@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 from trackfw.dataset import load_video
 from trackfw.errors import UserError
 from trackfw_plugins.datasets import check as check_module
-from trackfw_plugins.datasets import wear as wear_module
+from trackfw_plugins.datasets import wear_cli
 from trackfw_plugins.datasets.check import check_dataset
 from trackfw_plugins.datasets.mot import head_proxies, load_mot_sequence
 from trackfw_plugins.datasets.wear import (
@@ -282,7 +282,7 @@ def test_cli_wear_then_check(fake_sequence: Path, tmp_path: Path) -> None:
     def main() -> None:
         """Test group."""
 
-    wear_module.register(app)
+    wear_cli.register(app)
     check_module.register(app)
     runner = CliRunner()
     out = tmp_path / "cli"
