@@ -23,12 +23,12 @@ from trackfw_plugins.maths.appearance import (
     appearance_distance_matrix,
     patch_descriptor,
 )
+from trackfw_plugins.maths.candidate_windows import build_windows
 from trackfw_plugins.maths.reid_crop import crop_box
 from trackfw_plugins.maths.tps_rpm import TpsRpmSettings
 from trackfw_plugins.maths.window_association import (
     WindowAssociationParams,
     associate_candidates,
-    build_windows,
     select_candidate,
 )
 
