@@ -57,7 +57,11 @@ class AnnotatedFrame:
 
 @dataclass(frozen=True)
 class SamplingSettings:
-    """How many crops of each kind one frame gives."""
+    """How many crops of each kind one frame gives.
+
+    ``min_head_size`` is in px at 1080p (scaled by the frame height), like the proposals' smallest
+    box: smaller heads get no jittered positives or near misses.
+    """
 
     input_size: int = 32
     context: float = 16.0
@@ -66,7 +70,7 @@ class SamplingSettings:
     near_misses_per_head: int = 3
     random_per_frame: int = 12
     proposals_per_frame: int = 60
-    min_head_size: float = 6.0
+    min_head_size: float = 8.0
     max_negative_ratio: float = 3.0
 
 
@@ -180,11 +184,10 @@ def candidate_boxes(
 ) -> NDArray[np.float64]:
     """Candidate ``(N, 4)`` boxes of one frame (jittered heads, near misses, random, proposals)."""
     height, width = frame.image.shape[:2]
-    heads = (
-        frame.heads[frame.heads[:, 2] >= settings.min_head_size]
-        if len(frame.heads)
-        else (np.zeros((0, 3)))
-    )
+    # The same smallest head as the proposals and the detection benchmark (px at 1080p): a
+    # fixed pixel size would leave the smallest heads the detector must find without positives.
+    smallest = settings.min_head_size * height / 1080.0
+    heads = frame.heads[frame.heads[:, 2] >= smallest] if len(frame.heads) else np.zeros((0, 3))
     parts: list[NDArray[np.float64]] = []
     for head_x, head_y, size in heads:
         count = settings.positives_per_head

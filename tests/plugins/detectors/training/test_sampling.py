@@ -69,6 +69,17 @@ def test_sampled_crops_are_labelled_consistently() -> None:
     assert len(crop_labels) - positives <= max(10, 3 * positives)
 
 
+def test_smallest_sampled_head_is_scaled_by_the_frame_height() -> None:
+    # 6 px at 720p is 9 px at 1080p: above the 8 px (at 1080p) smallest head, so it is sampled
+    # at 720p; at 1080p the same 6 px head is below it and gets no jittered positives.
+    heads = np.array([[200.0, 200.0, 6.0]])
+    settings = SamplingSettings(positives_per_head=5, near_misses_per_head=0, random_per_frame=0)
+    for height, expected in ((720, 5), (1080, 0)):
+        frame = AnnotatedFrame(np.zeros((height, 400, 3), np.uint8), heads, "test")
+        boxes = candidate_boxes(frame, np.random.default_rng(0), settings)
+        assert np.count_nonzero(label_boxes(boxes, heads) == 1) == expected
+
+
 def test_head_boxes_are_squares_around_heads() -> None:
     boxes = head_boxes(np.array([[50.0, 40.0, 10.0]]))
     assert boxes.tolist() == [[45.0, 35.0, 10.0, 10.0]]
