@@ -69,6 +69,9 @@ def main() -> None:
     parser.add_argument("--blob-width", type=int, default=None, help="override blob_width")
     parser.add_argument("--work-width", type=int, default=None, help="override work_width")
     parser.add_argument(
+        "--blob-scales", type=int, default=None, help="override blob_scales_per_octave"
+    )
+    parser.add_argument(
         "--sequential", action="store_true", help="no EdgeBoxes thread (overlap_proposals off)"
     )
     arguments = parser.parse_args()
@@ -82,6 +85,7 @@ def main() -> None:
         for key, value in (
             ("blob_width", arguments.blob_width),
             ("work_width", arguments.work_width),
+            ("blob_scales_per_octave", arguments.blob_scales),
         )
         if value is not None
     }

@@ -86,17 +86,22 @@ def extract_crops(
     overflow = max(0.0, -lefts.min(), -tops.min(), rights.max() - width, bottoms.max() - height)
     pad = math.ceil(overflow) + 1
     padded = cv2.copyMakeBorder(image, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
-    for index in range(count):
-        x0 = round(lefts[index]) + pad
-        y0 = round(tops[index]) + pad
-        x1 = max(round(rights[index]) + pad, x0 + 1)
-        y1 = max(round(bottoms[index]) + pad, y0 + 1)
-        patch = padded[y0:y1, x0:x1]
-        shrinking = patch.shape[0] > crop_height or patch.shape[1] > crop_width
-        crops[index] = cv2.resize(
-            patch,
-            (crop_width, crop_height),
-            interpolation=cv2.INTER_AREA if shrinking else cv2.INTER_LINEAR,
+    # Corners as Python ints up front and resize into the output: the per-box loop was a third
+    # of the scoring time on 1500 boxes. np.rint rounds half to even, like round().
+    x0 = np.rint(lefts).astype(np.int64) + pad
+    y0 = np.rint(tops).astype(np.int64) + pad
+    x1 = np.maximum(np.rint(rights).astype(np.int64) + pad, x0 + 1)
+    y1 = np.maximum(np.rint(bottoms).astype(np.int64) + pad, y0 + 1)
+    shrinking = ((y1 - y0) > crop_height) | ((x1 - x0) > crop_width)
+    output_size = (crop_width, crop_height)
+    for index, (left, top, right, bottom, shrink) in enumerate(
+        zip(x0.tolist(), y0.tolist(), x1.tolist(), y1.tolist(), shrinking.tolist(), strict=True)
+    ):
+        cv2.resize(
+            padded[top:bottom, left:right],
+            output_size,
+            dst=crops[index],
+            interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR,
         )
     return crops
 
