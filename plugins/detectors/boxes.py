@@ -46,13 +46,15 @@ def suppress_nested_centres(
     """Drop each box whose centre lies near the centre of a better box [OURS].
 
     IoU NMS keeps a box twice the size of a better one on the same head (their IoU is 0.25),
-    and both then report a point on that head. Here a box is dropped when its centre is closer
-    than ``ratio`` times the smaller of the two boxes' sides to the centre of a box kept before it.
+    and a small box on the edge of a larger head box; both then report a second point on that
+    head. Here a box is dropped when its centre is closer than ``ratio`` times the larger of the
+    two boxes' sides to the centre of a box kept before it. Two neighbouring heads of similar
+    size are about one side apart, so they survive ``ratio`` < 1.
 
     Args:
         boxes: ``(N, 4)`` boxes as ``(left, top, width, height)``.
         order: indices into ``boxes``, best first (what :func:`non_maximum_suppression` returns).
-        ratio: share of the smaller side; 0 keeps every box.
+        ratio: share of the larger side; 0 keeps every box.
 
     Returns:
         The indices of ``order`` that survive, in the same order.
@@ -68,7 +70,7 @@ def suppress_nested_centres(
     centres = chosen[:, :2] + 0.5 * chosen[:, 2:]
     sides = np.sqrt(chosen[:, 2] * chosen[:, 3])
     distance = np.linalg.norm(centres[:, None, :] - centres[None, :, :], axis=2)
-    close = distance < ratio * np.minimum(sides[:, None], sides[None, :])
+    close = distance < ratio * np.maximum(sides[:, None], sides[None, :])
     keep = np.ones(len(order), dtype=bool)
     for index in range(len(order)):
         if keep[index]:

@@ -122,8 +122,8 @@ class EdgeBoxCnnParams(StageParams):
     nms_centre_ratio: float = Field(
         0.7,
         ge=0,
-        description="After NMS, drop a box whose centre is within this share of the smaller"
-        " side of a better box's centre; 0 = IoU NMS only.",
+        description="After NMS, drop a box whose centre is within this share of the larger"
+        " side of the two boxes from a better box's centre; 0 = IoU NMS only.",
     )
     batch_size: int = Field(64, ge=1, description="Crops per onnxruntime call.")
     intra_op_threads: int = Field(
