@@ -37,15 +37,21 @@ DENSE_MODEL = Path(__file__).resolve().parents[1] / "plugins/detectors/models/he
 
 
 def detectors(
-    names: list[str], model: str, height: int, thresholds: list[float]
+    names: list[str],
+    model: str,
+    height: int,
+    thresholds: list[float],
+    blob_scales: int | None = None,
 ) -> dict[str, Callable]:
     """The detect functions to compare, by name."""
     built: dict[str, Callable[[np.ndarray], Detections]] = {}
+    scales = {} if blob_scales is None else {"blob_scales_per_octave": blob_scales}
     for name in names:
         if name == "edgebox-cnn":
-            built[name] = EdgeBoxCnnDetector(EdgeBoxCnnParams(model=model)).detect_image
+            params = EdgeBoxCnnParams(model=model, **scales)
+            built[name] = EdgeBoxCnnDetector(params).detect_image
             for threshold in thresholds:
-                params = EdgeBoxCnnParams(model=model, score_threshold=threshold)
+                params = EdgeBoxCnnParams(model=model, score_threshold=threshold, **scales)
                 built[f"{name}@{threshold:g}"] = EdgeBoxCnnDetector(params).detect_image
         elif name == "edgebox-only":
             params = EdgeBoxCnnParams(model=model, blob_width=0)
@@ -92,6 +98,9 @@ def main() -> None:
     parser.add_argument(
         "--thresholds", default="", help="extra edgebox-cnn score thresholds, comma-separated"
     )
+    parser.add_argument(
+        "--blob-scales", type=int, default=None, help="edgebox-cnn blob_scales_per_octave"
+    )
     arguments = parser.parse_args()
     for source, frames in frames_of(arguments):
         frames = list(itertools.islice(frames, arguments.max_frames))
@@ -103,7 +112,11 @@ def main() -> None:
         thresholds = [float(value) for value in arguments.thresholds.split(",") if value]
         informative = [frame for frame in frames if frame.informative]
         for name, detect in detectors(
-            arguments.detectors.split(","), arguments.model, height, thresholds
+            arguments.detectors.split(","),
+            arguments.model,
+            height,
+            thresholds,
+            arguments.blob_scales,
         ).items():
             score = evaluate(detect, frames, min_head_size=minimum)
             print(f"  {name:17s} all frames         {score.summary()}")
