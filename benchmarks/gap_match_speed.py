@@ -23,7 +23,7 @@ import numpy as np  # noqa: E402 - after pinning the BLAS threads
 
 from trackfw_plugins.datasets.points import gap_scene  # noqa: E402
 from trackfw_plugins.maths.candidate_windows import build_windows  # noqa: E402
-from trackfw_plugins.maths.tps_rpm import TpsRpmSettings  # noqa: E402
+from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings  # noqa: E402
 from trackfw_plugins.maths.window_association import (  # noqa: E402
     WindowAssociationParams,
     associate_candidates,

@@ -39,7 +39,8 @@ import numpy as np  # noqa: E402 - after pinning the BLAS threads
 import scipy.io  # noqa: E402
 from scipy.spatial import cKDTree  # noqa: E402
 
-from trackfw_plugins.maths.tps_rpm import normalise_points, tps_rpm  # noqa: E402
+from trackfw_plugins.maths.tps_rpm import tps_rpm  # noqa: E402
+from trackfw_plugins.maths.tps_rpm_template import normalise_points  # noqa: E402
 
 LEVELS = {"def": 5, "noise": 6, "outlier": 5, "occlusion": 6}
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"

@@ -13,7 +13,8 @@ from pydantic import Field
 
 from trackfw.records import NO_MATCH, GapProblem, GapSolution
 from trackfw.stages import GapMatcher, StageParams
-from trackfw_plugins.maths.tps_rpm import TpsRpmSettings, match_points
+from trackfw_plugins.maths.tps_rpm import match_points
+from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 
 
 def _kalman3_rpm() -> TpsRpmSettings:

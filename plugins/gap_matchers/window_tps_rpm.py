@@ -25,7 +25,7 @@ from trackfw_plugins.maths.appearance import (
 )
 from trackfw_plugins.maths.candidate_windows import build_windows
 from trackfw_plugins.maths.reid_crop import crop_box
-from trackfw_plugins.maths.tps_rpm import TpsRpmSettings
+from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 from trackfw_plugins.maths.window_association import (
     WindowAssociationParams,
     associate_candidates,

@@ -30,11 +30,8 @@ from trackfw_plugins.maths.shape_distance import (
     ShapeDistanceSettings,
     hull_polygon,
 )
-from trackfw_plugins.maths.tps_rpm import (
-    TpsRpmSettings,
-    TpsRpmTemplate,
-    tps_rpm_multi_batch,
-)
+from trackfw_plugins.maths.tps_rpm import tps_rpm_multi_batch
+from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings, TpsRpmTemplate
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

@@ -17,7 +17,8 @@ from trackfw.records import NO_MATCH, Detections, FloatArray, IntArray, TargetSt
 from trackfw.stages import StageParams, Tracker
 from trackfw_plugins.maths.assignment import distance_matrix, greedy_nearest, hungarian
 from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R, KalmanBank
-from trackfw_plugins.maths.tps_rpm import TpsRpmSettings, match_points
+from trackfw_plugins.maths.tps_rpm import match_points
+from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 
 
 def _kalman3_rpm() -> TpsRpmSettings:

@@ -11,14 +11,16 @@ import scipy.io
 from trackfw_plugins.maths.sinkhorn import SinkhornWorkspace, sinkhorn
 from trackfw_plugins.maths.thin_plate import TpsBasis, tps_kernel
 from trackfw_plugins.maths.tps_rpm import (
-    TpsRpmSettings,
-    TpsRpmTemplate,
-    code_temperatures,
-    normalise_points,
     threshold_matches,
     tps_rpm,
     tps_rpm_batch,
     tps_rpm_multi_batch,
+)
+from trackfw_plugins.maths.tps_rpm_template import (
+    TpsRpmSettings,
+    TpsRpmTemplate,
+    code_temperatures,
+    normalise_points,
 )
 
 

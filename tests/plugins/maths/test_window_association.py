@@ -9,7 +9,8 @@ import pytest
 
 from trackfw_plugins.datasets.points import gap_scene
 from trackfw_plugins.maths.candidate_windows import build_windows
-from trackfw_plugins.maths.tps_rpm import TpsRpmSettings, tps_rpm
+from trackfw_plugins.maths.tps_rpm import tps_rpm
+from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 from trackfw_plugins.maths.window_association import (
     FALLBACK_ALL_DETECTIONS,
     FALLBACK_APPEARANCE,
