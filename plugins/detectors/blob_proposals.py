@@ -31,12 +31,6 @@ def blob_sigmas(min_diameter: float, max_diameter: float, per_octave: int = 3) -
     return [low * 2.0 ** (index / per_octave) for index in range(count)]
 
 
-def _channel_max(image: np.ndarray) -> NDArray[np.float32]:
-    """Per-pixel maximum over the channels of an ``(H, W, 3)`` image (OpenCV: 10x numpy)."""
-    blue, green, red = cv2.split(image)
-    return np.asarray(cv2.max(cv2.max(blue, green), red), dtype=np.float32)
-
-
 def _scale_space_peaks(
     pixels: NDArray[np.float32], sigmas: list[float], step: float, threshold: float
 ) -> list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float32]]]:
@@ -45,22 +39,37 @@ def _scale_space_peaks(
     # levels m and m + 1 then sits at scale sigmas[m - 1] (their geometric mean), and every
     # wanted scale has a DoG neighbour below and above.
     levels = [sigmas[0] * step ** (index - 1.5) for index in range(len(sigmas) + 3)]
-    blurred = [cv2.GaussianBlur(pixels, (0, 0), sigma) for sigma in levels]
-    # DoG ≈ (k - 1) σ² ∇²G; dividing by (k - 1) leaves the scale-normalised Laplacian. The
-    # strongest channel gives the response.
-    responses = [
-        _channel_max(cv2.absdiff(blurred[index + 1], blurred[index])) / np.float32(step - 1.0)
-        for index in range(len(levels) - 1)
-    ]
     kernel = np.ones((3, 3), dtype=np.uint8)
+    shape = pixels.shape[:2]
+    # The scale space is walked with two blurred frames and three responses written in place:
+    # a fresh array per level cost a third of the time in page faults (same results).
+    previous = cv2.GaussianBlur(pixels, (0, 0), levels[0])
+    current = np.empty_like(previous)
+    difference = np.empty_like(previous)
+    channels = [np.empty(shape, dtype=np.float32) for _ in range(3)]
+    responses: list[NDArray[np.float32]] = []
     peaks = []
-    for index in range(len(sigmas)):
-        response = responses[index + 1]
-        neighbours = np.maximum(responses[index], responses[index + 2])
-        local_max = response >= cv2.dilate(response, kernel)
-        rows, columns = np.nonzero(local_max & (response > neighbours) & (response > threshold))
-        refined_rows, refined_columns = _subpixel(response, rows, columns)
-        peaks.append((refined_rows, refined_columns, response[rows, columns]))
+    for level in levels[1:]:
+        cv2.GaussianBlur(pixels, (0, 0), level, dst=current)
+        cv2.absdiff(current, previous, dst=difference)
+        previous, current = current, previous
+        # DoG ≈ (k - 1) σ² ∇²G; dividing by (k - 1) leaves the scale-normalised Laplacian.
+        # The strongest channel gives the response.
+        response = responses.pop(0) if len(responses) == 3 else np.empty(shape, np.float32)
+        cv2.split(difference, channels)
+        cv2.max(channels[0], channels[1], dst=response)
+        cv2.max(response, channels[2], dst=response)
+        np.divide(response, np.float32(step - 1.0), out=response)
+        responses.append(response)
+        if len(responses) < 3:
+            continue
+        below, middle, above = responses
+        local_max = middle >= cv2.dilate(middle, kernel)
+        rows, columns = np.nonzero(
+            local_max & (middle > np.maximum(below, above)) & (middle > threshold)
+        )
+        refined_rows, refined_columns = _subpixel(middle, rows, columns)
+        peaks.append((refined_rows, refined_columns, middle[rows, columns]))
     return peaks
 
 
