@@ -87,6 +87,12 @@ class EdgeBoxCnnParams(StageParams):
     blob_scales_per_octave: int = Field(
         2, ge=1, le=8, description="Blob scales per doubling of the head size."
     )
+    blob_max_head_size: float = Field(
+        48.0,
+        gt=0,
+        description="Largest blob proposed, in px at 1080p (scaled by height/1080); larger heads"
+        " are left to EdgeBoxes.",
+    )
     min_head_size: float = Field(
         8.0, gt=0, description="Smallest box side kept, in px at 1080p (scaled by height/1080)."
     )
@@ -156,6 +162,7 @@ class EdgeBoxCnnParams(StageParams):
             blob_threshold=self.blob_threshold,
             blob_max_per_scale=self.blob_max_per_scale,
             blob_scales_per_octave=self.blob_scales_per_octave,
+            blob_max_head_size=self.blob_max_head_size,
             min_head_size=self.min_head_size,
             max_head_size=self.max_head_size,
             sed_model=self.sed_model or None,

@@ -30,6 +30,8 @@ class ProposalSettings:
         blob_threshold: minimum scale-normalised DoG response (grey levels / 255).
         blob_max_per_scale: strongest blobs kept per scale.
         blob_scales_per_octave: blob scales per doubling of the head size.
+        blob_max_head_size: largest blob proposed, px at 1080p (scaled by height / 1080):
+            larger heads close the contours EdgeBoxes looks for.
         min_head_size: smallest box side kept, px at 1080p (scaled by height / 1080).
         max_head_size: largest box side kept, px at 1080p (scaled by height / 1080).
         sed_model: optional structured-edge model for EdgeBoxes.
@@ -41,6 +43,7 @@ class ProposalSettings:
     blob_threshold: float = 0.02
     blob_max_per_scale: int = 150
     blob_scales_per_octave: int = 2
+    blob_max_head_size: float = 48.0
     min_head_size: float = 8.0
     max_head_size: float = 120.0
     sed_model: str | Path | None = None
@@ -97,7 +100,7 @@ class HeadProposer:
         reduced, scale = _reduce(image, settings.blob_width)
         sigmas = blob_sigmas(
             settings.min_head_size * size_scale * scale,
-            settings.max_head_size * size_scale * scale,
+            min(settings.blob_max_head_size, settings.max_head_size) * size_scale * scale,
             settings.blob_scales_per_octave,
         )
         boxes, _response = blob_boxes(

@@ -36,3 +36,18 @@ def test_proposer_keeps_only_head_sizes_and_can_switch_sources_off(make_disc_ima
     edges_only = HeadProposer(ProposalSettings(blob_width=0)).propose(image)
     assert len(blobs_only) + len(edges_only) == len(both)
     assert len(HeadProposer(ProposalSettings(EdgeBoxesSettings(), 0, 0)).propose(image)) == 0
+
+
+def test_blobs_stop_at_their_largest_head_size(make_disc_image) -> None:
+    image = make_disc_image([(150.0, 180.0)], radius=10)  # 360 px high: 60 px at 1080p
+
+    def largest_blob_on_disc(largest: float) -> float:
+        settings = ProposalSettings(edge_boxes_width=0, blob_max_head_size=largest)
+        boxes = HeadProposer(settings).propose(image)
+        centres = boxes[:, :2] + boxes[:, 2:] / 2
+        on_disc = np.hypot(centres[:, 0] - 150.0, centres[:, 1] - 180.0) < 3.0
+        assert boxes[:, 2].max() <= largest * 360 / 1080 * 1.001
+        return float(boxes[on_disc, 2].max(initial=0.0))
+
+    assert largest_blob_on_disc(120.0) == pytest.approx(20.0, rel=0.3)
+    assert largest_blob_on_disc(30.0) <= 10.0 * 1.001
