@@ -3,12 +3,13 @@
 Usage::
 
     python benchmarks/detector_speed.py [--video DIR] [--frames 20] [--threads 0] [--sequential]
+        [--set blob_scales_per_octave=3 ...]
 
 ``--video`` is a trackfw video folder (frames are resized to 1280x720 when they differ); without it
 a synthetic 1280x720 frame (textured ground, 30 disc "heads") is used. Single process, onnxruntime
 with ``--threads`` onnxruntime intra-op threads (default 0: the detector's automatic choice, all cores
 up to 4 unless OMP_NUM_THREADS says otherwise); EdgeBoxes runs in its own thread unless
-``--sequential``.
+``--sequential``. ``--set KEY=VALUE`` changes an edgebox-cnn parameter (repeatable).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from stage_overrides import add_set_option, parse_overrides
 
 from trackfw_plugins.detectors.edgebox_cnn import EdgeBoxCnnDetector, EdgeBoxCnnParams
 
@@ -66,11 +68,7 @@ def main() -> None:
     parser.add_argument(
         "--threads", type=int, default=0, help="onnxruntime intra-op threads (0: auto)"
     )
-    parser.add_argument("--blob-width", type=int, default=None, help="override blob_width")
-    parser.add_argument("--work-width", type=int, default=None, help="override work_width")
-    parser.add_argument(
-        "--blob-scales", type=int, default=None, help="override blob_scales_per_octave"
-    )
+    add_set_option(parser, "edgebox-cnn")
     parser.add_argument(
         "--sequential", action="store_true", help="no EdgeBoxes thread (overlap_proposals off)"
     )
@@ -80,15 +78,7 @@ def main() -> None:
         if arguments.video
         else synthetic_frames(arguments.frames)
     )
-    overrides = {
-        key: value
-        for key, value in (
-            ("blob_width", arguments.blob_width),
-            ("work_width", arguments.work_width),
-            ("blob_scales_per_octave", arguments.blob_scales),
-        )
-        if value is not None
-    }
+    overrides = parse_overrides(arguments.overrides)
     params = EdgeBoxCnnParams(
         intra_op_threads=arguments.threads,
         overlap_proposals=not arguments.sequential,
