@@ -117,6 +117,24 @@ def parse_yaml(text: str, source: str) -> Any:
         loader.dispose()
 
 
+def parse_assignments(assignments: list[str], option: str) -> dict[str, Any]:
+    """``["k=v", ...]`` to a dict; values are read as YAML scalars (numbers, booleans...).
+
+    >>> parse_assignments(["miss_rate=0.1", "source=heads"], "--detector-param")
+    {'miss_rate': 0.1, 'source': 'heads'}
+    """
+    params: dict[str, Any] = {}
+    for assignment in assignments:
+        key, separator, text = assignment.partition("=")
+        if not separator or not key.strip():
+            raise UserError(f"{option} {assignment!r}: expected KEY=VALUE.")
+        try:
+            params[key.strip()] = yaml.safe_load(text) if text.strip() else ""
+        except yaml.YAMLError:
+            raise UserError(f"{option} {assignment!r}: the value is not valid YAML.") from None
+    return params
+
+
 def apply_overrides(data: dict[str, Any], overrides: Sequence[str], source: str) -> list[str]:
     """Apply ``path.to.key=value`` overrides in place; returns problems (one line each)."""
     problems: list[str] = []

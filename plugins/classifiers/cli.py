@@ -7,32 +7,14 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
-import yaml
 
 from trackfw.atomic import write_json
 from trackfw.errors import UserError
+from trackfw.pipeline import parse_assignments
 from trackfw_plugins.classifiers.online_rules import OnlineRules
 
 #: Folder beside the model file that keeps the per-video measurements (NPZ).
 CACHE_FOLDER = "infoless_features.cache"
-
-
-def parse_assignments(assignments: list[str], option: str) -> dict[str, Any]:
-    """``["k=v", ...]`` to a dict; values are read as YAML scalars (numbers, booleans...).
-
-    >>> parse_assignments(["miss_rate=0.1", "source=heads"], "--detector-param")
-    {'miss_rate': 0.1, 'source': 'heads'}
-    """
-    params: dict[str, Any] = {}
-    for assignment in assignments:
-        key, separator, text = assignment.partition("=")
-        if not separator or not key.strip():
-            raise UserError(f"{option} {assignment!r}: expected KEY=VALUE.")
-        try:
-            params[key.strip()] = yaml.safe_load(text) if text.strip() else ""
-        except yaml.YAMLError:
-            raise UserError(f"{option} {assignment!r}: the value is not valid YAML.") from None
-    return params
 
 
 def _percent(value: float) -> str:

@@ -9,7 +9,7 @@ import pytest
 
 from trackfw.cli import main
 from trackfw.errors import UserError
-from trackfw.pipeline import load_pipeline
+from trackfw.pipeline import load_pipeline, parse_assignments
 from trackfw.registry import load_registry
 
 from .conftest import PIPELINE
@@ -176,3 +176,9 @@ def test_shipped_pipelines_validate(capsys: pytest.CaptureFixture[str]) -> None:
     assert pipelines
     for path in pipelines:
         assert main(["validate", str(path)]) == 0, capsys.readouterr().err
+
+
+def test_parse_assignments() -> None:
+    assert parse_assignments(["a=1", "b=true", "c=x y"], "--p") == {"a": 1, "b": True, "c": "x y"}
+    with pytest.raises(UserError, match="KEY=VALUE"):
+        parse_assignments(["novalue"], "--p")

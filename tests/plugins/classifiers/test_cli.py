@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 from trackfw.dataset import write_heads, write_intervals, write_meta
 from trackfw.errors import UserError
 from trackfw.records import Interval
-from trackfw_plugins.classifiers.cli import CACHE_FOLDER, parse_assignments, register
+from trackfw_plugins.classifiers.cli import CACHE_FOLDER, register
 from trackfw_plugins.classifiers.svm_model import load_model
 
 FRAMES = 30
@@ -120,9 +120,3 @@ def test_rule_options_are_recorded_and_checked(dataset: Path, tmp_path: Path) ->
 
     with pytest.raises(UserError, match="online rule"):
         train_classifier(dataset, tmp_path / "m.json", leave_probability=0.9, echo=lambda _: None)
-
-
-def test_parse_assignments() -> None:
-    assert parse_assignments(["a=1", "b=true", "c=x y"], "--p") == {"a": 1, "b": True, "c": "x y"}
-    with pytest.raises(UserError, match="KEY=VALUE"):
-        parse_assignments(["novalue"], "--p")
