@@ -81,11 +81,11 @@ class EdgeBoxCnnParams(StageParams):
         description="Frames are reduced to this width for DoG blob proposals (px); 0 = off.",
     )
     blob_threshold: float = Field(
-        0.02, ge=0, description="Min scale-normalised DoG response of a blob (grey/255)."
+        0.05, ge=0, description="Min scale-normalised DoG response of a blob (grey/255)."
     )
     blob_max_per_scale: int = Field(150, ge=1, description="Strongest blobs kept per scale.")
     blob_scales_per_octave: int = Field(
-        2, ge=1, le=8, description="Blob scales per doubling of the head size."
+        3, ge=1, le=8, description="Blob scales per doubling of the head size."
     )
     blob_max_head_size: float = Field(
         48.0,

@@ -40,9 +40,9 @@ class ProposalSettings:
     edge_boxes: EdgeBoxesSettings = field(default_factory=EdgeBoxesSettings)
     edge_boxes_width: int = 640
     blob_width: int = 640
-    blob_threshold: float = 0.02
+    blob_threshold: float = 0.05
     blob_max_per_scale: int = 150
-    blob_scales_per_octave: int = 2
+    blob_scales_per_octave: int = 3
     blob_max_head_size: float = 48.0
     min_head_size: float = 8.0
     max_head_size: float = 120.0
