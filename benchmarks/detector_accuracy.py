@@ -11,8 +11,9 @@ smaller than the detector's minimum (8 px at 1080p, scaled by height/1080) are l
 are detections on them. MOT sequences use the head proxy (left + w/2, top + 0.08 h), size 0.12 h.
 Each detector is scored on all frames and on the informative ones (outside the ground-truth
 info-less intervals: the frames whose detections the tracker uses); ``--thresholds`` adds rows for
-the edgebox-cnn detector at other score thresholds (read from one run per frame, so their ms/frame
-is not a detection time), and ``--set KEY=VALUE`` changes one of its parameters (repeatable).
+the edgebox-cnn detector at other score thresholds, and ``--set KEY=VALUE`` changes one of its
+parameters (repeatable). All edgebox-cnn rows are read from one run per frame, so only the first
+row's ms/frame (all frames) is a detection time.
 """
 
 from __future__ import annotations
