@@ -81,19 +81,25 @@ def run_command(
     registry = get_registry()
     prepared = prepare_run(registry, pipeline, input_path, output, overrides or [])
     results = run_prepared(prepared, registry, show_progress=not quiet, console=error_console)
-    table = Table(title=f"{prepared.pipeline.name} -> {prepared.output}")
-    for column in ("video", "frames", "fps", "intervals", "targets", "output"):
-        table.add_column(column)
-    for run, directory in results:
+    table = Table(title=f"pipeline {prepared.pipeline.name}")
+    # A video's name may fold; numbers never do. "proc. fps" is how fast trackfw processed the
+    # video (not the video's frame rate); the intervals are those the run detected.
+    table.add_column("video", overflow="fold")
+    for column in ("frames", "proc. fps", "detected intervals", "targets"):
+        table.add_column(column, justify="right", no_wrap=True)
+    for run, _ in results:
         table.add_row(
             run.video.name,
             str(run.video.n_frames),
             f"{run.frames_per_second:.0f}",
             str(len(run.gaps)),
             str(len(run.target_ids)),
-            str(directory),
         )
     console.print(table)
+    # Output folders go below the table, one per line and never cut or folded, so that they can
+    # be copied from the terminal whole.
+    for _, directory in results:
+        console.print(f"wrote {directory}", markup=False, highlight=False, soft_wrap=True)
 
 
 def validate_command(
