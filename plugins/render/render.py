@@ -144,6 +144,15 @@ def render_run(
     out = Path(out) if out is not None else folder / "render.mp4"
     if out.suffix.lower() != ".mp4":
         raise UserError(f"--out {out}: expected a file name ending in .mp4.")
+    # Checked before anything is written: a still that cannot exist is a mistyped number, and
+    # silently rendering without it would hide that.
+    outside = sorted(frame for frame in png_frames if not 1 <= frame <= source.n_frames)
+    if outside:
+        raise UserError(
+            f"--png-frames: {'frames' if len(outside) > 1 else 'frame'}"
+            f" {', '.join(map(str, outside))} {'are' if len(outside) > 1 else 'is'} out of range;"
+            f" {data.video_name} has frames 1 to {source.n_frames}."
+        )
     out.parent.mkdir(parents=True, exist_ok=True)
     hold = max(0, round(source.fps) if panel_frames is None else panel_frames)
     wanted = {frame - 1 for frame in png_frames}

@@ -117,3 +117,16 @@ def test_render_names_the_videos_when_several_runs_are_present(
     assert "choose one with --video" in capsys.readouterr().err
     assert main(["render", str(run_dir), "--video", "other", "--panel-frames", "0"]) == 0
     assert len(_frames(run_dir / "other" / "render.mp4")) == 20
+
+
+def test_png_frame_out_of_range_is_an_error_naming_the_valid_range(
+    run_dir: Path, tmp_path: Path, capsys
+) -> None:
+    out = tmp_path / "render" / "clip.mp4"
+    code = main(["render", str(run_dir), "--out", str(out), "--png-frames", "10,9999"])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "9999" in err and "1 to 60" in err, err
+    assert len(err.strip().splitlines()) == 1, err
+    # Nothing is half done: no video and no still from the valid frame number.
+    assert not out.parent.exists() or not any(out.parent.iterdir())
