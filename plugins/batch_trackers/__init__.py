@@ -1,0 +1,1 @@
+"""Batch trackers: DPNMS, SMOT, CEM, GTCSA-like and ByteTrack over every detection of a video."""

@@ -1,0 +1,199 @@
+"""The arrays every batch tracker reads and writes: all detections of a video, and tracks.
+
+A batch tracker (DPNMS, SMOT, CEM, GTCSA-like, ByteTrack) sees every detection of a video at once
+and returns tracks with its own identities. The detections are one flat table sorted by frame;
+the tracks are another flat table sorted by (id, frame). Both are plain numpy so the algorithm
+modules stay independent of the engine.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+
+#: Side of the square box the paper puts around every head point for the batch trackers.
+PAPER_BOX_SIZE = 80.0
+
+
+@dataclass(frozen=True)
+class VideoDetections:
+    """Every detection of one video, sorted by frame (stable within a frame).
+
+    Attributes:
+        frames: ``(N,)`` frame index of each detection (0-based).
+        points: ``(N, 2)`` box centres (the head point) in pixels.
+        sizes: ``(N, 2)`` box width and height in pixels.
+        scores: ``(N,)`` detection scores.
+        n_frames: number of frames of the video (frames without detections included).
+    """
+
+    frames: IntArray
+    points: FloatArray
+    sizes: FloatArray
+    scores: FloatArray
+    n_frames: int
+
+    def __post_init__(self) -> None:
+        frames = np.asarray(self.frames, dtype=np.int64).reshape(-1)
+        count = len(frames)
+        points = np.asarray(self.points, dtype=np.float64).reshape(count, 2)
+        sizes = np.asarray(self.sizes, dtype=np.float64).reshape(count, 2)
+        scores = np.asarray(self.scores, dtype=np.float64).reshape(count)
+        if count and (frames.min() < 0 or frames.max() >= self.n_frames):
+            raise ValueError(f"detection frames must lie in [0, {self.n_frames - 1}]")
+        order = np.argsort(frames, kind="stable")
+        object.__setattr__(self, "frames", frames[order])
+        object.__setattr__(self, "points", points[order])
+        object.__setattr__(self, "sizes", sizes[order])
+        object.__setattr__(self, "scores", scores[order])
+
+    @classmethod
+    def from_array(cls, table: FloatArray, n_frames: int | None = None) -> VideoDetections:
+        """Build from an ``(N, 6)`` table of ``(frame, x, y, w, h, score)`` (x, y = box centre).
+
+        >>> detections = VideoDetections.from_array(np.array([[1, 10, 20, 80, 80, 0.9]]))
+        >>> detections.n_frames, detections.boxes().tolist()
+        (2, [[-30.0, -20.0, 80.0, 80.0]])
+        """
+        table = np.asarray(table, dtype=np.float64).reshape(-1, 6)
+        frames = table[:, 0].astype(np.int64)
+        if n_frames is None:
+            n_frames = int(frames.max()) + 1 if len(frames) else 0
+        return cls(frames, table[:, 1:3], table[:, 3:5], table[:, 5], n_frames)
+
+    @classmethod
+    def from_points(
+        cls,
+        frames: IntArray,
+        points: FloatArray,
+        n_frames: int,
+        scores: FloatArray | None = None,
+        box_size: float = PAPER_BOX_SIZE,
+    ) -> VideoDetections:
+        """Head points with the paper's square boxes (``box_size`` px) and score 1 by default."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        count = len(points)
+        if scores is None:
+            scores = np.ones(count)
+        return cls(frames, points, np.full((count, 2), float(box_size)), scores, n_frames)
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def boxes(self) -> FloatArray:
+        """``(N, 4)`` boxes as ``(left, top, width, height)``."""
+        return np.hstack([self.points - 0.5 * self.sizes, self.sizes])
+
+    def frame_bounds(self) -> IntArray:
+        """``(n_frames + 1,)`` offsets: frame ``t`` owns rows ``bounds[t]:bounds[t + 1]``."""
+        return np.searchsorted(self.frames, np.arange(self.n_frames + 1)).astype(np.int64)
+
+
+@dataclass(frozen=True)
+class Tracks:
+    """Tracks with the tracker's own identities, one row per (track, frame), sorted by both.
+
+    Attributes:
+        ids: ``(M,)`` track identity.
+        frames: ``(M,)`` frame index.
+        points: ``(M, 2)`` position (head point) in pixels.
+        observed: ``(M,)`` True where the position is a detection (or was corrected by one),
+            False where the tracker filled it in (interpolated, extrapolated or predicted).
+    """
+
+    ids: IntArray
+    frames: IntArray
+    points: FloatArray
+    observed: BoolArray
+
+    def __post_init__(self) -> None:
+        ids = np.asarray(self.ids, dtype=np.int64).reshape(-1)
+        count = len(ids)
+        frames = np.asarray(self.frames, dtype=np.int64).reshape(count)
+        points = np.asarray(self.points, dtype=np.float64).reshape(count, 2)
+        observed = np.asarray(self.observed, dtype=bool).reshape(count)
+        order = np.lexsort((frames, ids))
+        object.__setattr__(self, "ids", ids[order])
+        object.__setattr__(self, "frames", frames[order])
+        object.__setattr__(self, "points", points[order])
+        object.__setattr__(self, "observed", observed[order])
+
+    @classmethod
+    def empty(cls) -> Tracks:
+        """No tracks at all."""
+        none = np.zeros(0, dtype=np.int64)
+        return cls(none, none, np.zeros((0, 2)), np.zeros(0, dtype=bool))
+
+    @classmethod
+    def concatenate(cls, pieces: list[Tracks]) -> Tracks:
+        """Join track tables whose identities do not clash."""
+        if not pieces:
+            return cls.empty()
+        return cls(
+            np.concatenate([piece.ids for piece in pieces]),
+            np.concatenate([piece.frames for piece in pieces]),
+            np.concatenate([piece.points for piece in pieces]),
+            np.concatenate([piece.observed for piece in pieces]),
+        )
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def track_ids(self) -> IntArray:
+        """The distinct identities, ascending."""
+        return np.unique(self.ids)
+
+    def track(self, track_id: int) -> tuple[IntArray, FloatArray, BoolArray]:
+        """Frames ``(L,)``, points ``(L, 2)`` and observed flags ``(L,)`` of one track."""
+        rows = self.ids == track_id
+        return self.frames[rows], self.points[rows], self.observed[rows]
+
+    def renumbered(self) -> Tracks:
+        """Identities renumbered 1, 2, ... in order of each track's first frame (then old id).
+
+        >>> tracks = Tracks(np.array([7, 3]), np.array([5, 2]), np.zeros((2, 2)), np.ones(2))
+        >>> tracks.renumbered().ids.tolist()
+        [1, 2]
+        """
+        if len(self) == 0:
+            return self
+        unique, inverse = np.unique(self.ids, return_inverse=True)
+        first = np.full(len(unique), np.iinfo(np.int64).max)
+        np.minimum.at(first, inverse, self.frames)
+        rank = np.empty(len(unique), dtype=np.int64)
+        rank[np.lexsort((unique, first))] = np.arange(1, len(unique) + 1)
+        return Tracks(rank[inverse], self.frames, self.points, self.observed)
+
+
+def box_iou(boxes_a: FloatArray, boxes_b: FloatArray) -> FloatArray:
+    """``(P, Q)`` intersection over union of ``(left, top, width, height)`` boxes.
+
+    >>> box_iou(np.array([[0.0, 0, 80, 80]]), np.array([[26.0, 0, 80, 80]])).round(3).tolist()
+    [[0.509]]
+    """
+    intersection = box_intersection(boxes_a, boxes_b)
+    area_a = boxes_a[:, 2] * boxes_a[:, 3]
+    area_b = boxes_b[:, 2] * boxes_b[:, 3]
+    union = area_a[:, None] + area_b[None, :] - intersection
+    return np.divide(intersection, union, out=np.zeros_like(intersection), where=union > 0)
+
+
+def box_intersection(boxes_a: FloatArray, boxes_b: FloatArray) -> FloatArray:
+    """``(P, Q)`` intersection areas of ``(left, top, width, height)`` boxes."""
+    boxes_a = np.asarray(boxes_a, dtype=np.float64).reshape(-1, 4)
+    boxes_b = np.asarray(boxes_b, dtype=np.float64).reshape(-1, 4)
+    left = np.maximum(boxes_a[:, None, 0], boxes_b[None, :, 0])
+    top = np.maximum(boxes_a[:, None, 1], boxes_b[None, :, 1])
+    right = np.minimum(
+        boxes_a[:, None, 0] + boxes_a[:, None, 2], boxes_b[None, :, 0] + boxes_b[None, :, 2]
+    )
+    bottom = np.minimum(
+        boxes_a[:, None, 1] + boxes_a[:, None, 3], boxes_b[None, :, 1] + boxes_b[None, :, 3]
+    )
+    return np.clip(right - left, 0.0, None) * np.clip(bottom - top, 0.0, None)
