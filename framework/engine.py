@@ -17,18 +17,11 @@ from typing import Any
 
 import numpy as np
 
+from trackfw.arrays import FloatArray
 from trackfw.dataset import frame_source_path
 from trackfw.errors import UserError
 from trackfw.pipeline import Pipeline
-from trackfw.records import (
-    NO_MATCH,
-    Detections,
-    FloatArray,
-    FrameData,
-    GapProblem,
-    Interval,
-    VideoContext,
-)
+from trackfw.records import NO_MATCH, Detections, FrameData, GapProblem, Interval, VideoContext
 from trackfw.registry import Registry
 from trackfw.stage_cache import CACHED_KINDS, StageCache, StageReplay
 from trackfw.stages import STAGE_KINDS, Classifier, Detector, GapMatcher, Stage, Tracker

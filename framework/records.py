@@ -14,8 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
+from trackfw.arrays import FloatArray, IntArray
 
 #: Marker for "no detection" in integer index arrays.
 NO_MATCH = -1

@@ -34,8 +34,9 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
+from trackfw.arrays import FloatArray
 from trackfw.atomic import atomic_open
-from trackfw.records import Detections, FloatArray, VideoContext
+from trackfw.records import Detections, VideoContext
 
 if TYPE_CHECKING:
     from trackfw.pipeline import Pipeline

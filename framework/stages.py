@@ -22,14 +22,13 @@ from typing import ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
+from trackfw.arrays import FloatArray, IntArray
 from trackfw.records import (
     ClassifierDecision,
     Detections,
-    FloatArray,
     FrameData,
     GapProblem,
     GapSolution,
-    IntArray,
     Prediction,
     TargetState,
     VideoContext,

@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from trackfw.records import FloatArray
+from trackfw.arrays import FloatArray
 
 FlowMethod = Literal["dis", "farneback"]
 DisPreset = Literal["ultrafast", "fast", "medium"]

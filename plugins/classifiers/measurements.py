@@ -15,11 +15,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw.atomic import atomic_open
 from trackfw.errors import UserError
-from trackfw.records import FloatArray, FrameData, IntArray, VideoContext
+from trackfw.records import FrameData, VideoContext
 from trackfw.stages import Detector
 from trackfw_plugins.classifiers.infoless_features import (
     DEFAULT_C_MAX,
@@ -30,7 +30,6 @@ from trackfw_plugins.classifiers.infoless_features import (
     spread,
 )
 
-BoolArray = NDArray[np.bool_]
 CACHE_VERSION = 1
 
 

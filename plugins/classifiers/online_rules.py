@@ -36,8 +36,8 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from trackfw.arrays import FloatArray
 from trackfw.errors import UserError
-from trackfw.records import FloatArray
 from trackfw_plugins.classifiers.infoless_features import HISTORY, FeatureAssembler
 
 

@@ -28,8 +28,9 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import Field, field_validator
 
+from trackfw.arrays import FloatArray
 from trackfw.errors import UserError
-from trackfw.records import ClassifierDecision, Detections, FloatArray, FrameData, VideoContext
+from trackfw.records import ClassifierDecision, Detections, FrameData, VideoContext
 from trackfw.stages import Classifier, StageParams
 from trackfw_plugins.classifiers.infoless_features import (
     DEFAULT_C_MAX,

@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
+from trackfw.arrays import FloatArray
 from trackfw.atomic import write_text
 from trackfw.errors import UserError
-from trackfw.records import FloatArray
 
 FORMAT_NAME = "trackfw-infoless-svm"
 FORMAT_VERSION = 1

@@ -21,10 +21,9 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
-from numpy.typing import NDArray
 
+from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw.errors import UserError
-from trackfw.records import FloatArray, IntArray
 from trackfw_plugins.classifiers.infoless_features import (
     DEFAULT_C_MAX,
     FEATURE_LAYOUT,
@@ -37,7 +36,6 @@ from trackfw_plugins.classifiers.measurements import (
 from trackfw_plugins.classifiers.online_rules import OnlineDecider, OnlineRules, model_rules
 from trackfw_plugins.classifiers.svm_model import SvmModel, fit_platt, platt_probability
 
-BoolArray = NDArray[np.bool_]
 #: Where the reference frame of C_t comes from in training (see :func:`fit_model`).
 Reference = Literal["gt", "replay"]
 

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field
 
+from trackfw.arrays import FloatArray
 from trackfw.errors import UserError
 from trackfw.records import Detections, FrameData
 from trackfw.stages import Detector, StageParams
@@ -34,8 +35,6 @@ from trackfw_plugins.detectors.boxes import (
     non_maximum_suppression,
 )
 from trackfw_plugins.detectors.head_scorer import context_fraction, open_onnx_session
-
-FloatArray = NDArray[np.float64]
 
 
 class OnnxDetectorParams(StageParams):

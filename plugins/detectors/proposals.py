@@ -13,10 +13,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from trackfw.arrays import FloatArray
 from trackfw_plugins.detectors.blob_proposals import blob_boxes, blob_sigmas
 from trackfw_plugins.detectors.edge_proposals import EdgeBoxesSettings, EdgeBoxProposer
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

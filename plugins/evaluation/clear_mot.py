@@ -22,13 +22,9 @@ from itertools import pairwise
 from typing import Literal
 
 import numpy as np
-from numpy.typing import NDArray
 
+from trackfw.arrays import FloatArray, IntArray
 from trackfw_plugins.maths.assignment import distance_matrix, hungarian
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 
 Geometry = Literal["point", "box"]
 

@@ -11,12 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from trackfw.arrays import FloatArray
 from trackfw_plugins.evaluation.counts import ConfusionCounts
 from trackfw_plugins.maths.assignment import distance_matrix, hungarian
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass

@@ -18,9 +18,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
+from trackfw.arrays import FloatArray, IntArray
 from trackfw_plugins.evaluation.clear_mot import (
     FrameObservations,
     Geometry,
@@ -29,9 +29,6 @@ from trackfw_plugins.evaluation.clear_mot import (
     identity_indices,
     pairwise_distances,
 )
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 #: TrackEval's alpha thresholds 0.05 .. 0.95.
 ALPHAS: FloatArray = np.arange(0.05, 0.99, 0.05)

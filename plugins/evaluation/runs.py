@@ -23,13 +23,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw.errors import UserError
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 
 TRACKS_FILE = "tracks.txt"
 FRAMES_FILE = "frames.csv"

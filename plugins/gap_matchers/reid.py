@@ -14,7 +14,8 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from trackfw.records import NO_MATCH, FloatArray, GapProblem, GapSolution
+from trackfw.arrays import FloatArray
+from trackfw.records import NO_MATCH, GapProblem, GapSolution
 from trackfw.stages import GapMatcher, StageParams
 from trackfw_plugins.maths.assignment import hungarian
 from trackfw_plugins.maths.gog import gog_block_sizes, gog_descriptors

@@ -16,7 +16,8 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field
 
-from trackfw.records import NO_MATCH, Detections, FloatArray, GapProblem, GapSolution, IntArray
+from trackfw.arrays import FloatArray, IntArray
+from trackfw.records import NO_MATCH, Detections, GapProblem, GapSolution
 from trackfw.stages import GapMatcher, StageParams
 from trackfw_plugins.maths.appearance import (
     appearance_descriptors,

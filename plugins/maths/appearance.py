@@ -20,9 +20,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from trackfw.records import FloatArray
-
-UInt8Array = NDArray[np.uint8]
+from trackfw.arrays import FloatArray, UInt8Array
 
 #: Paper patch size (§5): 80×80 pixels.
 PATCH_SIZE = 80

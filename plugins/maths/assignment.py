@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
+from trackfw.arrays import FloatArray, IntArray
 
 #: Cost given to gated-out pairs before solving; any pair at this cost is dropped afterwards.
 FORBIDDEN_COST = 1.0e6

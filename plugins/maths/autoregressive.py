@@ -24,7 +24,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from trackfw.records import FloatArray
+from trackfw.arrays import FloatArray
 
 SeriesKind = Literal["displacement", "position"]
 

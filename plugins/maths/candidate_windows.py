@@ -15,9 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
+from trackfw.arrays import BoolArray, FloatArray, IntArray
 
 _COMBINATION_CHUNK = 200_000
 

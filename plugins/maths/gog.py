@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from trackfw.records import FloatArray
+from trackfw.arrays import FloatArray
 from trackfw_plugins.maths.lomo import rgb_to_hsv
 
 try:  # threadpoolctl ships with scikit-learn, a dependency of trackfw

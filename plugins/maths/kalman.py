@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
+from trackfw.arrays import FloatArray
 
 #: Paper values (Yu et al. 2018, section 4.2): diagonal P0, Q and R.
 PAPER_P0 = 1.0e3

@@ -18,9 +18,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from trackfw.records import FloatArray
-
-IntArray = NDArray[np.int64]
+from trackfw.arrays import FloatArray, IntArray
 
 #: Defaults of the authors' LOMO.m.
 NUM_SCALES = 3

@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from trackfw.records import FloatArray
+from trackfw.arrays import FloatArray
 from trackfw_plugins.maths.appearance import crop_replicate
 
 CropMode = Literal["body", "head80"]

@@ -19,11 +19,10 @@ from typing import Literal
 
 import cv2
 import numpy as np
-from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.optimize import linear_sum_assignment
 
-FloatArray = NDArray[np.float64]
+from trackfw.arrays import FloatArray
 
 _AREA_EPSILON = 1e-9
 _CHUNK = 64

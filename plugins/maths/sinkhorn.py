@@ -12,9 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import DTypeLike, NDArray
 
-from trackfw_plugins.maths.thin_plate import FloatArray
-
-IntArray = NDArray[np.int64]
+from trackfw.arrays import FloatArray, IntArray
 
 
 class SinkhornWorkspace:

@@ -11,9 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
+from trackfw.arrays import FloatArray
 
 _KERNEL_EPSILON = 1e-10
 

@@ -28,18 +28,16 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
+from trackfw.arrays import FloatArray, IntArray
 from trackfw_plugins.maths.sinkhorn import SinkhornWorkspace, sinkhorn
-from trackfw_plugins.maths.thin_plate import FloatArray, homogeneous, tps_kernel
+from trackfw_plugins.maths.thin_plate import homogeneous, tps_kernel
 from trackfw_plugins.maths.tps_rpm_template import (
     TpsRpmSettings,
     TpsRpmTemplate,
     code_temperatures,
     paper_temperatures,
 )
-
-IntArray = NDArray[np.int64]
 
 _ROW_SUM_FLOOR = 1e-12
 

@@ -14,7 +14,8 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from trackfw_plugins.maths.thin_plate import FloatArray, TpsBasis, homogeneous
+from trackfw.arrays import FloatArray
+from trackfw_plugins.maths.thin_plate import TpsBasis, homogeneous
 
 
 class TpsRpmSettings(BaseModel):

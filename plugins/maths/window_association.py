@@ -20,10 +20,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 from pydantic import Field
 from scipy.optimize import linear_sum_assignment
 
+from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw_plugins.maths.candidate_windows import WindowSet, WindowSettings, build_windows
 from trackfw_plugins.maths.shape_distance import (
     HullShapeMatcher,
@@ -32,10 +32,6 @@ from trackfw_plugins.maths.shape_distance import (
 )
 from trackfw_plugins.maths.tps_rpm import tps_rpm_multi_batch
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings, TpsRpmTemplate
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 
 #: Costs closer than this are a tie (the smaller AR order wins, ALGORITHMS.md 4.7).
 TIE_TOLERANCE = 1e-6

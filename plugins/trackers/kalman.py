@@ -13,7 +13,8 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from trackfw.records import NO_MATCH, Detections, FloatArray, IntArray, TargetState, VideoContext
+from trackfw.arrays import FloatArray, IntArray
+from trackfw.records import NO_MATCH, Detections, TargetState, VideoContext
 from trackfw.stages import StageParams, Tracker
 from trackfw_plugins.maths.assignment import distance_matrix, greedy_nearest, hungarian
 from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R, KalmanBank

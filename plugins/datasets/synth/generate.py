@@ -21,6 +21,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from trackfw.arrays import ImageArray
 from trackfw.atomic import atomic_open, write_text
 from trackfw.dataset import (
     GT_FILE,
@@ -51,7 +52,6 @@ from .render import (
 from .scene import (
     POSE_COLUMNS,
     CameraModel,
-    ImageArray,
     Pose,
     TexturedPlane,
     corner_elevations,

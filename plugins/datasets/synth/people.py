@@ -13,9 +13,8 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from trackfw.arrays import FloatArray
 from trackfw.errors import UserError
-
-from .scene import FloatArray
 
 #: Where pedestrians may roam (metres): x_min, x_max, y_min, y_max.
 SQUARE_BOUNDS = (-40.0, 40.0, 3.0, 50.0)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .scene import FloatArray, ImageArray
+from trackfw.arrays import FloatArray, ImageArray
 
 #: Sprite size at full resolution: body (width, height) from neck (top) to feet (bottom).
 BODY_SPRITE = (64, 176)

@@ -16,15 +16,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any
 
 import cv2
 import numpy as np
-from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
-#: An image as OpenCV returns it (BGR uint8 for frames and textures, float32 for sprites).
-ImageArray = NDArray[Any]
+from trackfw.arrays import FloatArray, ImageArray
 
 #: Columns of poses.csv (angles in degrees, positions in metres).
 POSE_COLUMNS = ("pan", "tilt", "roll", "scale", "tx", "ty", "tz")

@@ -11,12 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
+from trackfw.arrays import FloatArray
 from trackfw.records import Interval
 
 from .people import Crowd, builtin_crowd, trajectory_crowd
 from .presets import VideoPlan
 from .render import BODY_WIDTH_M, HEAD_DIAMETER_M
-from .scene import CameraModel, FloatArray, Pose, project
+from .scene import CameraModel, Pose, project
 from .wearer import WATCH_Y, WearerMotion, head_points, plan_wearer
 
 #: Parapet height above the walkway floor (metres).

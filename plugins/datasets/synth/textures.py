@@ -11,9 +11,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from trackfw.arrays import FloatArray, ImageArray
 from trackfw.errors import UserError
-
-from .scene import FloatArray, ImageArray
 
 #: Ground patterns a site may use.
 GROUND_STYLES = ("paving", "tiles", "asphalt", "brick", "gravel", "checker")

@@ -15,9 +15,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from trackfw.arrays import FloatArray
+
 from .people import Crowd, standing_group
 from .presets import IntervalPlan, WearerConfig
-from .scene import CameraModel, FloatArray, Pose, look_at, project
+from .scene import CameraModel, Pose, look_at, project
 
 #: Camera distance behind the parapet while watching, and while walking the walkway (metres).
 WATCH_Y = -0.2
