@@ -150,6 +150,16 @@ def plugins_command(
                 {"plugin": f.source.name, "package": f.source.package, "error": f.error}
                 for f in registry.failures
             ],
+            "clashes": [
+                {
+                    "kind": c.kind,
+                    "name": c.name,
+                    "package": c.source.package,
+                    "plugin": c.source.name,
+                    "kept": c.kept.package,
+                }
+                for c in registry.clashes
+            ],
         }
         console.print_json(json.dumps(data))
         return
@@ -171,7 +181,22 @@ def plugins_command(
     if registry.failures:
         console.print("[red]plugins that failed to load:[/red]")
         for failure in registry.failures:
-            console.print(f"  {failure.source.name} ({failure.source.package}): {failure.error}")
+            console.print(
+                f"  {failure.source.name} ({failure.source.package}): {failure.error}",
+                markup=False,
+                highlight=False,
+                soft_wrap=True,
+            )
+    if registry.clashes:
+        console.print("[yellow]names already taken (the earlier registration is kept):[/yellow]")
+        for clash in registry.clashes:
+            console.print(
+                f"  {clash.kind} {clash.name!r} from {clash.source.name}"
+                f" ({clash.source.package}) ignored: {clash.kept.package} holds it",
+                markup=False,
+                highlight=False,
+                soft_wrap=True,
+            )
 
 
 def command_group(app: typer.Typer, name: str, help_text: str) -> typer.Typer:

@@ -5,7 +5,14 @@ entry-point group is registered with a :class:`pluggy.PluginManager`, then each 
 :func:`trackfw.hookspecs.trackfw_register_stages` is called with the :class:`Registry`. A plugin
 whose import raises, that declares another plugin API version, or that registers something that
 is not a proper stage class is recorded in :attr:`Registry.failures` and skipped; the rest of the
-tool keeps working.
+tool keeps working. A plugin that raises ``SystemExit`` (``sys.exit()`` at import) is such a
+failure too: it cannot end the process it was loaded into.
+
+Names are first come, first served, and the built-in plugins (those of the ``trackfw``
+distribution) always come first: a third-party plugin that registers a stage, input, executor or
+command under a name already taken does not replace it. That one registration is skipped and
+recorded in :attr:`Registry.clashes` (``trackfw plugins`` lists them); the plugin's other names
+stay registered. Third-party plugins come in the order of their entry-point names.
 """
 
 from __future__ import annotations
@@ -22,13 +29,16 @@ from types import ModuleType
 from typing import Any
 
 import pluggy
+from pluggy import HookImpl
 from pydantic import BaseModel, ValidationError
 
-from trackfw import PLUGIN_API_VERSION, hookspecs
+from trackfw import PLUGIN_API_VERSION, __version__, hookspecs
 from trackfw.errors import PluginError
 from trackfw.stages import STAGE_BASES, Stage, StageParams
 
 ENTRY_POINT_GROUP = "trackfw"
+#: The distribution whose plugins are built in: they win every name clash.
+BUILTIN_PACKAGE = "trackfw"
 
 
 @dataclass(frozen=True)
@@ -38,6 +48,11 @@ class PluginSource:
     name: str
     package: str
     version: str
+
+    @property
+    def builtin(self) -> bool:
+        """True for the plugins that ship with trackfw itself."""
+        return self.package == BUILTIN_PACKAGE
 
 
 @dataclass(frozen=True)
@@ -77,6 +92,23 @@ class PluginFailure:
     error: str
 
 
+@dataclass(frozen=True)
+class PluginClash:
+    """A name a plugin registered that was already taken; the earlier registration was kept.
+
+    Attributes:
+        kind: ``detector``, ``classifier``, ..., ``input``, ``executor`` or ``command``.
+        name: the contested name (``train classifier`` for a command inside a group).
+        source: the plugin whose registration was ignored.
+        kept: the plugin that holds the name.
+    """
+
+    kind: str
+    name: str
+    source: PluginSource
+    kept: PluginSource
+
+
 @dataclass
 class Registry:
     """Every stage class and named input known to trackfw.
@@ -90,6 +122,7 @@ class Registry:
     inputs: dict[str, InputEntry] = field(default_factory=dict)
     executors: dict[str, ExecutorEntry] = field(default_factory=dict)
     failures: list[PluginFailure] = field(default_factory=list)
+    clashes: list[PluginClash] = field(default_factory=list)
     plugin_manager: pluggy.PluginManager | None = None
     #: pluggy plugin name -> where it came from, for every plugin that loaded.
     sources: dict[str, PluginSource] = field(default_factory=dict)
@@ -122,9 +155,8 @@ class Registry:
         if not name or not callable(factory):
             raise PluginError(f"add_input needs a name and a callable factory, got {name!r}")
         if name in self.inputs:
-            raise PluginError(
-                f"input {name!r} is already registered by {self.inputs[name].source.package}"
-            )
+            self._clash("input", name, self.inputs[name].source)
+            return
         self.inputs[name] = InputEntry(name, factory, description, self._current)
 
     def add_executor(self, name: str, cls_or_factory: Callable[..., Any]) -> None:
@@ -137,10 +169,10 @@ class Registry:
             raise PluginError(
                 f"add_executor needs a name and a class or callable factory, got {name!r}"
             )
-        if name in self.executors and self.executors[name].factory is not cls_or_factory:
-            raise PluginError(
-                f"executor {name!r} is already registered by {self.executors[name].source.package}"
-            )
+        if name in self.executors:
+            if self.executors[name].factory is not cls_or_factory:
+                self._clash("executor", name, self.executors[name].source)
+            return
         self.executors[name] = ExecutorEntry(name, cls_or_factory, self._current)
 
     def _add(self, kind: str, cls: Any) -> None:
@@ -162,10 +194,15 @@ class Registry:
                 f"{cls.__qualname__}.Params fields lack a description: {', '.join(undocumented)}"
             )
         key = (kind, cls.name)
-        if key in self.stages and self.stages[key].cls is not cls:
-            other = self.stages[key].source.package
-            raise PluginError(f"{kind} {cls.name!r} is already registered by {other}")
+        if key in self.stages:
+            if self.stages[key].cls is not cls:
+                self._clash(kind, cls.name, self.stages[key].source)
+            return
         self.stages[key] = StageEntry(kind, cls.name, cls, self._current)
+
+    def _clash(self, kind: str, name: str, kept: PluginSource) -> None:
+        """Record that the plugin being loaded asked for a name ``kept`` already holds."""
+        self.clashes.append(PluginClash(kind, name, self._current, kept))
 
     # -------------------------------------------------------------------------- lookup
 
@@ -269,7 +306,9 @@ def load_registry(
     for source, loader in candidates:
         try:
             module = loader()
-        except Exception as error:  # a broken plugin must never break the tool
+        except KeyboardInterrupt:
+            raise
+        except BaseException as error:  # a broken plugin must never break (nor end) the tool
             registry.failures.append(PluginFailure(source, f"import failed: {_one_line(error)}"))
             continue
         api = getattr(module, "TRACKFW_PLUGIN_API", PLUGIN_API_VERSION)
@@ -299,6 +338,25 @@ def load_registry(
     return registry
 
 
+def _in_load_order(
+    implementations: Iterable[HookImpl], sources: Mapping[str, PluginSource]
+) -> list[HookImpl]:
+    """Built-in plugins first, then the others in the order they loaded.
+
+    pluggy calls the last registered plugin first; names are first come, first served, so the
+    order is fixed here instead, and a plugin can never take a built-in name by loading early or
+    late.
+    """
+    order = {name: index for index, name in enumerate(sources)}
+
+    def key(implementation: HookImpl) -> tuple[bool, int]:
+        source = sources.get(implementation.plugin_name)
+        builtin = source is not None and source.builtin
+        return (not builtin, order.get(implementation.plugin_name, len(order)))
+
+    return sorted(implementations, key=key)
+
+
 def _call_each(
     manager: pluggy.PluginManager,
     hook_name: str,
@@ -307,40 +365,148 @@ def _call_each(
 ) -> None:
     """Call each plugin's implementation on its own, so one failure stays with its plugin."""
     caller = getattr(manager.hook, hook_name)
-    for implementation in caller.get_hookimpls():
+    for implementation in _in_load_order(caller.get_hookimpls(), sources):
         source = sources.get(implementation.plugin_name)
         if source is None:
             continue
         registry._current = source
-        snapshot = (dict(registry.stages), dict(registry.inputs), dict(registry.executors))
+        snapshot = (
+            dict(registry.stages),
+            dict(registry.inputs),
+            dict(registry.executors),
+            list(registry.clashes),
+        )
         try:
             implementation.function(registry=registry)
-        except Exception as error:
+        except KeyboardInterrupt:
+            raise
+        except BaseException as error:  # SystemExit included: a plugin cannot end the tool
             # Roll back whatever this plugin registered before it failed: half a plugin is worse
             # than none.
-            registry.stages, registry.inputs, registry.executors = snapshot
+            registry.stages, registry.inputs, registry.executors, registry.clashes = snapshot
             detail = _one_line(error)
-            if not isinstance(error, PluginError):
-                frame = traceback.extract_tb(error.__traceback__)[-1]
-                detail += f" ({Path(frame.filename).name}:{frame.lineno})"
+            frames = traceback.extract_tb(error.__traceback__)
+            if not isinstance(error, PluginError) and frames:
+                detail += f" ({Path(frames[-1].filename).name}:{frames[-1].lineno})"
             registry.failures.append(PluginFailure(source, f"{hook_name} failed: {detail}"))
         finally:
             registry._current = PluginSource("<direct>", "<direct>", "")
 
 
 def call_command_hooks(registry: Registry, app: Any) -> None:
-    """Let every loaded plugin add its CLI commands; failures are recorded, not raised."""
+    """Let every loaded plugin add its CLI commands; failures and name clashes are recorded.
+
+    Built-in plugins go first. A command or group a plugin adds under a name that is already taken
+    at that level (``run``, ``dataset``, ``train classifier``) is removed again and recorded in
+    :attr:`Registry.clashes`: the earlier one keeps the name. A plugin whose hook fails (or exits)
+    has everything it added removed.
+    """
     if registry.plugin_manager is None:
         return
-    for implementation in registry.plugin_manager.hook.trackfw_register_commands.get_hookimpls():
+    core = PluginSource("core", BUILTIN_PACKAGE, __version__)
+    owners: dict[int, tuple[Any, PluginSource]] = {}
+    for _, entry, _ in _walk_commands(app):
+        owners[id(entry)] = (entry, core)
+    implementations = registry.plugin_manager.hook.trackfw_register_commands.get_hookimpls()
+    for implementation in _in_load_order(implementations, registry.sources):
+        name = implementation.plugin_name
+        source = registry.sources.get(name) or PluginSource(name, name.split(":")[0], "")
+        snapshot = [(holder, list(holder)) for holder in _command_lists(app)]
         try:
             implementation.function(app=app)
-        except Exception as error:
-            name = implementation.plugin_name
-            source = registry.sources.get(name) or PluginSource(name, name.split(":")[0], "")
+        except KeyboardInterrupt:
+            raise
+        except BaseException as error:  # SystemExit included: a plugin cannot end the tool
+            for holder, content in snapshot:
+                holder[:] = content
             registry.failures.append(
                 PluginFailure(source, f"trackfw_register_commands failed: {_one_line(error)}")
             )
+            continue
+        _settle_commands(app, "", owners, source, registry.clashes)
+
+
+def _command_name(info: Any) -> str:
+    """The name typer gives a ``CommandInfo`` or a ``TyperInfo`` ('' for a nameless group)."""
+    import typer.main
+
+    name = getattr(info, "name", None)
+    if getattr(info, "typer_instance", None) is not None:
+        name = typer.main.solve_typer_info_defaults(info).name
+    if isinstance(name, str) and name:
+        return name
+    callback = getattr(info, "callback", None)
+    return typer.main.get_command_name(callback.__name__) if callable(callback) else ""
+
+
+def _level(app: Any) -> list[tuple[str, Any, list[Any]]]:
+    """``(name, entry, the list that holds it)`` for the commands and groups one level down.
+
+    typer merges the commands of a group added without a name into its parent, so such a group's
+    entries count at the parent's level.
+    """
+    entries: list[tuple[str, Any, list[Any]]] = []
+    for info in app.registered_commands:
+        entries.append((_command_name(info), info, app.registered_commands))
+    for info in app.registered_groups:
+        name = _command_name(info)
+        if name or info.typer_instance is None:
+            entries.append((name, info, app.registered_groups))
+        else:
+            entries.extend(_level(info.typer_instance))
+    return entries
+
+
+def _walk_commands(app: Any, path: str = "") -> list[tuple[str, Any, list[Any]]]:
+    """Every command and group under ``app``, named by its full path (``train classifier``)."""
+    found = []
+    for name, entry, holder in _level(app):
+        found.append((f"{path}{name}", entry, holder))
+        instance = getattr(entry, "typer_instance", None)
+        if instance is not None:
+            found.extend(_walk_commands(instance, f"{path}{name} "))
+    return found
+
+
+def _command_lists(app: Any) -> list[list[Any]]:
+    """The lists of commands and groups of ``app`` and every group under it."""
+    lists = [app.registered_commands, app.registered_groups]
+    for info in app.registered_groups:
+        if info.typer_instance is not None:
+            lists.extend(_command_lists(info.typer_instance))
+    return lists
+
+
+def _settle_commands(
+    app: Any,
+    path: str,
+    owners: dict[int, tuple[Any, PluginSource]],
+    source: PluginSource,
+    clashes: list[PluginClash],
+) -> None:
+    """Remove what ``source`` just added under a taken name; take ownership of the rest."""
+
+    def owner(entry: Any) -> PluginSource | None:
+        known = owners.get(id(entry))
+        return known[1] if known is not None and known[0] is entry else None
+
+    level = _level(app)
+    taken: dict[str, PluginSource] = {}
+    for name, entry, _ in level:
+        held_by = owner(entry)
+        if held_by is not None:
+            taken.setdefault(name, held_by)
+    for name, entry, holder in level:
+        if owner(entry) is None:
+            if name in taken:
+                holder.remove(entry)
+                clashes.append(PluginClash("command", f"{path}{name}", source, taken[name]))
+                continue
+            owners[id(entry)] = (entry, source)
+            taken[name] = source
+        instance = getattr(entry, "typer_instance", None)
+        if instance is not None:
+            _settle_commands(instance, f"{path}{name} ", owners, source, clashes)
 
 
 def params_schema(params_model: type[BaseModel]) -> list[tuple[str, str, str, str]]:
@@ -364,9 +530,11 @@ def params_schema(params_model: type[BaseModel]) -> list[tuple[str, str, str, st
 
 
 __all__ = [
+    "BUILTIN_PACKAGE",
     "ENTRY_POINT_GROUP",
     "ExecutorEntry",
     "InputEntry",
+    "PluginClash",
     "PluginFailure",
     "PluginSource",
     "Registry",

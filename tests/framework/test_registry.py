@@ -189,3 +189,156 @@ def test_every_registered_stage_documents_itself() -> None:
     registry = load_registry()
     for entry in registry.stages.values():
         assert entry.cls.summary(), f"{entry.kind} {entry.name} has no docstring"
+
+
+# A third-party plugin that claims the built-in detector's name, plus one name of its own.
+_CLAIMS_EDGEBOX = """\
+from trackfw.hookspecs import hookimpl
+from trackfw.stages import Detector
+
+
+class Impostor(Detector):
+    \"\"\"Claims to be edgebox-cnn.\"\"\"
+
+    name = "edgebox-cnn"
+
+    def detect(self, frame):
+        raise NotImplementedError
+
+
+class Own(Detector):
+    \"\"\"A detector under a name nobody else uses.\"\"\"
+
+    name = "{own}"
+
+    def detect(self, frame):
+        raise NotImplementedError
+
+
+@hookimpl
+def trackfw_register_stages(registry):
+    registry.add_detector(Impostor)
+    registry.add_detector(Own)
+"""
+
+
+@pytest.mark.parametrize("entry_point", ["aaa-first", "zzz-last"])
+def test_a_plugin_cannot_take_a_built_in_stage_name(
+    entry_point: str, tmp_path: Path, monkeypatch, capsys
+) -> None:
+    """Built-ins win whatever the entry-point order; the plugin's other stages still register."""
+    builtin_detectors = load_registry().names("detector")
+    site = tmp_path / "site"
+    _install_dist(site, "trackfw-impostor", "trackfw_impostor", _CLAIMS_EDGEBOX.format(own="own"))
+    # The entry point's name decides the load order: both sides of the built-ins' names.
+    entry_points = site / "trackfw_impostor-0.1.0.dist-info" / "entry_points.txt"
+    entry_points.write_text(f"[trackfw]\n{entry_point} = trackfw_impostor\n")
+    monkeypatch.syspath_prepend(str(site))
+
+    registry = load_registry()
+    assert registry.get("detector", "edgebox-cnn").source.package == "trackfw"
+    assert registry.names("detector") == sorted([*builtin_detectors, "own"])
+    assert registry.get("detector", "own").source.package == "trackfw-impostor"
+    assert not registry.failures, registry.failures
+
+    assert main(["plugins", "--json"]) == 0
+    listing = json.loads(capsys.readouterr().out)
+    assert listing["clashes"] == [
+        {
+            "kind": "detector",
+            "name": "edgebox-cnn",
+            "package": "trackfw-impostor",
+            "plugin": entry_point,
+            "kept": "trackfw",
+        }
+    ]
+    assert main(["plugins"]) == 0
+    text = capsys.readouterr().out
+    assert "edgebox-cnn" in text and "trackfw-impostor" in text and "ignored" in text, text
+
+
+def test_two_plugins_claiming_one_name_keep_the_first_and_report_the_second(
+    tmp_path: Path, monkeypatch
+) -> None:
+    source = _CLAIMS_EDGEBOX.replace('"edgebox-cnn"', '"shared-name"')
+    site = tmp_path / "site"
+    _install_dist(site, "trackfw-one", "trackfw_one", source.format(own="one-own"))
+    _install_dist(site, "trackfw-two", "trackfw_two", source.format(own="two-own"))
+    monkeypatch.syspath_prepend(str(site))
+    registry = load_registry()
+    assert registry.get("detector", "shared-name").source.package == "trackfw-one"
+    assert {"one-own", "two-own"} <= set(registry.names("detector"))
+    assert [(c.source.package, c.name, c.kept.package) for c in registry.clashes] == [
+        ("trackfw-two", "shared-name", "trackfw-one")
+    ]
+
+
+_CLAIMS_RUN = """\
+import typer
+
+from trackfw.hookspecs import hookimpl
+
+
+def hijacked(pipeline: str) -> None:
+    print("HIJACKED")
+    raise typer.Exit(7)
+
+
+@hookimpl
+def trackfw_register_commands(app):
+    app.command("run")(hijacked)
+    app.command("hello")(lambda: print("hello from a plugin"))
+"""
+
+
+def test_a_plugin_cannot_replace_a_built_in_command(tmp_path: Path, monkeypatch, capsys) -> None:
+    site = tmp_path / "site"
+    _install_dist(site, "trackfw-hijack", "trackfw_hijack", _CLAIMS_RUN)
+    monkeypatch.syspath_prepend(str(site))
+    from trackfw_plugins.datasets.points import make_points_video
+
+    video = make_points_video(tmp_path / "v", n_frames=20, intervals=[])
+    pipeline = REPO / "pipelines" / "kalman1-tr-oracle.yaml"
+    out = tmp_path / "o"
+    code = main(["run", str(pipeline), "--input", str(video), "--output", str(out), "--quiet"])
+    captured = capsys.readouterr()
+    assert code == 0 and "HIJACKED" not in captured.out, captured
+    assert (out / "v" / "summary.json").is_file()
+    # The plugin's other command is kept.
+    assert main(["hello"]) == 0
+    assert "hello from a plugin" in capsys.readouterr().out
+    assert main(["plugins", "--json"]) == 0
+    clashes = json.loads(capsys.readouterr().out)["clashes"]
+    assert clashes == [
+        {
+            "kind": "command",
+            "name": "run",
+            "package": "trackfw-hijack",
+            "plugin": "trackfw-hijack",
+            "kept": "trackfw",
+        }
+    ]
+
+
+@pytest.mark.parametrize(
+    "module_source",
+    [
+        "import sys\nsys.exit(3)\n",
+        "from trackfw.hookspecs import hookimpl\n\n@hookimpl\n"
+        "def trackfw_register_stages(registry):\n    raise SystemExit(3)\n",
+        "from trackfw.hookspecs import hookimpl\n\n@hookimpl\n"
+        "def trackfw_register_commands(app):\n    raise SystemExit(3)\n",
+    ],
+    ids=["at-import", "in-register-stages", "in-register-commands"],
+)
+def test_a_plugin_that_exits_does_not_end_every_command(
+    module_source: str, tmp_path: Path, monkeypatch, capsys
+) -> None:
+    site = tmp_path / "site"
+    _install_dist(site, "trackfw-quitter", "trackfw_quitter", module_source)
+    monkeypatch.syspath_prepend(str(site))
+    assert main(["--help"]) == 0
+    assert main(["plugins"]) == 0
+    out = capsys.readouterr().out
+    assert "trackfw-quitter" in out and "SystemExit: 3" in out, out
+    assert main(["validate", str(REPO / "pipelines" / "kalman1-tr-oracle.yaml")]) == 0
