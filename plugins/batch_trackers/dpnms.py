@@ -27,14 +27,9 @@ import math
 import numpy as np
 from pydantic import Field
 
+from trackfw.arrays import FloatArray, IntArray
 from trackfw.stages import StageParams
-from trackfw_plugins.batch_trackers.tracks import (
-    FloatArray,
-    IntArray,
-    Tracks,
-    VideoDetections,
-    box_iou,
-)
+from trackfw_plugins.batch_trackers.tracks import Tracks, VideoDetections, box_iou
 
 
 class DpnmsParams(StageParams):

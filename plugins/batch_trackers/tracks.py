@@ -11,11 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
+from trackfw.arrays import BoolArray, FloatArray, IntArray
 
 #: Side of the square box the paper puts around every head point for the batch trackers.
 PAPER_BOX_SIZE = 80.0
