@@ -76,6 +76,7 @@ def run_command(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
 ) -> None:
     """Track the targets through a video or every video of a dataset."""
+    from trackfw.outputs import unread_warning
     from trackfw.runner import prepare_run, run_prepared
 
     registry = get_registry()
@@ -100,6 +101,10 @@ def run_command(
     # be copied from the terminal whole.
     for _, directory in results:
         console.print(f"wrote {directory}", markup=False, highlight=False, soft_wrap=True)
+    for run, _ in results:
+        warning = unread_warning(run)
+        if warning is not None:
+            error_console.print(f"warning: {warning}", markup=False, highlight=False, soft_wrap=True)
 
 
 def validate_command(

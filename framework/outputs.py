@@ -101,9 +101,32 @@ def gaps_data(run: VideoRun) -> list[dict[str, Any]]:
     return entries
 
 
+def unread_warning(run: VideoRun) -> str | None:
+    """One line saying how many frames of the video could not be read, or None when all were.
+
+    A truncated or corrupt file still runs (the frames after the break are marked ``unread`` in
+    frames.csv), but its results cover only part of the video, which the user must be told.
+    """
+    statuses = [record.status for record in run.frames]
+    unread, unreadable = statuses.count("unread"), statuses.count("unreadable")
+    if unread + unreadable == 0:
+        return None
+    causes = []
+    if unread:
+        last = len(statuses) - unread
+        causes.append(f"the frames stop after frame {last}: a truncated or corrupt file")
+    if unreadable:
+        causes.append(f"{unreadable} failed to decode")
+    return (
+        f"{run.video.path}: {unread + unreadable} of {len(statuses)} frames could not be read"
+        f" ({'; '.join(causes)}); they are marked in {FRAMES_FILE} and were not tracked."
+    )
+
+
 def summary_data(run: VideoRun, pipeline: Pipeline) -> dict[str, Any]:
     """summary.json content."""
     statuses = [record.status for record in run.frames]
+    warning = unread_warning(run)
     stage_means = {}
     for kind in STAGE_KINDS:
         values = [r.milliseconds[kind] for r in run.frames if kind in r.milliseconds]
@@ -120,6 +143,7 @@ def summary_data(run: VideoRun, pipeline: Pipeline) -> dict[str, Any]:
         "frames_ok": statuses.count("ok"),
         "frames_unreadable": statuses.count("unreadable"),
         "frames_unread": statuses.count("unread"),
+        "frames_not_read": statuses.count("unreadable") + statuses.count("unread"),
         "frames_infoless": sum(1 for r in run.frames if r.infoless),
         "intervals": len(run.gaps),
         "targets": run.target_ids,
@@ -127,6 +151,7 @@ def summary_data(run: VideoRun, pipeline: Pipeline) -> dict[str, Any]:
         "seconds": round(run.seconds, 4),
         "frames_per_second": round(run.frames_per_second, 2),
         "ms_per_frame": stage_means,
+        "warnings": [] if warning is None else [warning],
     }
 
 

@@ -1,0 +1,166 @@
+"""Run outputs: what a run says and records when some frames of the video could not be read."""
+
+from __future__ import annotations
+
+import json
+import struct
+import textwrap
+from collections.abc import Iterator
+from pathlib import Path
+from types import ModuleType
+
+import cv2
+import numpy as np
+import pytest
+
+from trackfw.cli import main
+from trackfw.hookspecs import hookimpl
+from trackfw.records import Detections, FrameData
+from trackfw.registry import Registry, load_registry
+from trackfw.stages import Detector
+
+#: MP4 boxes that hold other boxes on the way from ``moov`` to the sample tables.
+_CONTAINERS = {"moov", "trak", "mdia", "minf", "stbl"}
+
+
+def _boxes(data: bytes | bytearray, start: int, end: int) -> Iterator[tuple[str, int, int, int]]:
+    """``(kind, offset, size, header size)`` of each MP4 box in ``data[start:end]``."""
+    position = start
+    while position < end:
+        size, kind = struct.unpack(">I4s", data[position : position + 8])
+        header = 8
+        if size == 1:
+            size, header = struct.unpack(">Q", data[position + 8 : position + 16])[0], 16
+        elif size == 0:
+            size = end - position
+        yield kind.decode("latin-1"), position, size, header
+        position += size
+
+
+def _walk_tables(moov: bytearray, start: int, end: int, shift: int, sizes: list[int]) -> None:
+    """Add ``shift`` to every chunk offset (stco) and collect the sample sizes (stsz)."""
+    for kind, position, size, header in _boxes(moov, start, end):
+        if kind in _CONTAINERS:
+            _walk_tables(moov, position + header, position + size, shift, sizes)
+        elif kind == "stco":
+            (count,) = struct.unpack(">I", moov[position + 12 : position + 16])
+            for index in range(count):
+                at = position + 16 + 4 * index
+                struct.pack_into(">I", moov, at, struct.unpack(">I", moov[at : at + 4])[0] + shift)
+        elif kind == "stsz":
+            fixed, count = struct.unpack(">II", moov[position + 12 : position + 20])
+            sizes.extend(
+                [fixed] * count
+                if fixed
+                else struct.unpack(f">{count}I", moov[position + 20 : position + 20 + 4 * count])
+            )
+
+
+def truncated_faststart_mp4(path: Path, n_frames: int, keep: int) -> None:
+    """An ``mp4v`` MP4 of ``n_frames`` whose index (moov) sits at the front, cut after ``keep``.
+
+    This is what a copy interrupted mid-way leaves of a camera's (or ``-movflags faststart``)
+    recording: the index still lists every frame, the data stops early.
+    """
+    plain = path.with_suffix(".plain.mp4")
+    writer = cv2.VideoWriter(str(plain), cv2.VideoWriter.fourcc(*"mp4v"), 25, (64, 48))
+    rng = np.random.default_rng(0)
+    for _ in range(n_frames):
+        writer.write(rng.integers(20, 235, (48, 64, 3), dtype=np.uint8))
+    writer.release()
+    data = plain.read_bytes()
+    plain.unlink()
+    boxes = list(_boxes(data, 0, len(data)))
+    _, moov_at, moov_size, _ = next(box for box in boxes if box[0] == "moov")
+    moov = bytearray(data[moov_at : moov_at + moov_size])
+    sizes: list[int] = []
+    # moov moves in front of mdat, so every chunk offset grows by its size.
+    _walk_tables(moov, 8, len(moov), moov_size, sizes)
+    out = bytearray()
+    data_start = 0
+    for kind, position, size, header in boxes:
+        if kind == "moov":
+            continue
+        if kind == "mdat":
+            out += moov
+            data_start = len(out) + header
+        out += data[position : position + size]
+    assert len(sizes) == n_frames
+    path.write_bytes(bytes(out[: data_start + sum(sizes[:keep])]))
+
+
+class _PixelDetector(Detector):
+    """Test detector that reads pixels: one detection at the image centre."""
+
+    name = "pixel-centre"
+    uses_pixels = True
+
+    def detect(self, frame: FrameData) -> Detections:
+        assert frame.image is not None
+        height, width = frame.image.shape[:2]
+        return Detections.from_points([[width / 2, height / 2]])
+
+
+def _pixel_registry() -> Registry:
+    module = ModuleType("pixel_centre_plugin")
+
+    @hookimpl
+    def trackfw_register_stages(registry: Registry) -> None:
+        registry.add_detector(_PixelDetector)
+
+    module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
+    return load_registry(extra_modules=[("pixel-centre", module)])
+
+
+PIXEL_PIPELINE = textwrap.dedent(
+    """\
+    name: pixels
+    engine: {init: detections}
+    stages:
+      detector:    {type: pixel-centre}
+      classifier:  {type: flow-threshold}
+      tracker:     {type: kalman}
+      gap_matcher: {type: assignment}
+    """
+)
+
+
+def test_truncated_mp4_says_how_many_frames_could_not_be_read(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    video = tmp_path / "clip.mp4"
+    truncated_faststart_mp4(video, n_frames=120, keep=40)
+    capture = cv2.VideoCapture(str(video))
+    assert capture.get(cv2.CAP_PROP_FRAME_COUNT) == 120  # the index still promises 120 frames
+    capture.release()
+    pipeline = tmp_path / "pixels.yaml"
+    pipeline.write_text(PIXEL_PIPELINE)
+    monkeypatch.setattr("trackfw.cli.load_registry", _pixel_registry)
+    out = tmp_path / "out"
+    code = main(["run", str(pipeline), "--input", str(video), "--output", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    summary = json.loads((out / "clip" / "summary.json").read_text())
+    assert summary["frames_ok"] == 40 and summary["frames_unread"] == 80
+    assert summary["frames_not_read"] == 80
+    warnings = [line for line in err.splitlines() if "could not be read" in line]
+    assert warnings == [f"warning: {line}" for line in summary["warnings"]]
+    assert str(video) in warnings[0] and "80 of 120 frames could not be read" in warnings[0]
+    assert "stop after frame 40" in warnings[0]
+
+
+def test_complete_video_has_no_warning(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    video = tmp_path / "clip.mp4"
+    truncated_faststart_mp4(video, n_frames=30, keep=30)
+    pipeline = tmp_path / "pixels.yaml"
+    pipeline.write_text(PIXEL_PIPELINE)
+    monkeypatch.setattr("trackfw.cli.load_registry", _pixel_registry)
+    out = tmp_path / "out"
+    code = main(["run", str(pipeline), "--input", str(video), "--output", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    summary = json.loads((out / "clip" / "summary.json").read_text())
+    assert summary["frames_not_read"] == 0 and summary["warnings"] == []
+    assert "could not be read" not in err
