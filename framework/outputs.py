@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 from pathlib import Path
 from typing import Any
 
 from trackfw import __version__
 from trackfw.atomic import write_json, write_text
 from trackfw.engine import FrameRecord, VideoRun
+from trackfw.errors import UserError
 from trackfw.pipeline import Pipeline
 from trackfw.stages import STAGE_KINDS
 
@@ -166,3 +168,54 @@ def write_run(run: VideoRun, pipeline: Pipeline, directory: Path) -> Path:
     write_json(directory / GAPS_FILE, gaps_data(run))
     write_json(directory / SUMMARY_FILE, summary_data(run, pipeline))
     return directory
+
+
+def check_complete_run(run_dir: Path, n_frames: int | None = None) -> dict[str, Any]:
+    """summary.json of the complete run in ``run_dir``; a UserError naming the video otherwise.
+
+    A run is complete when its summary.json (written last) is there and its frames.csv holds a
+    row per frame: a killed run lacks the first, a file cut short after the run (a full disk, an
+    interrupted copy) the second. Every command that reads a run folder checks it this way.
+
+    Args:
+        run_dir: one video's run folder.
+        n_frames: frames the video has (the dataset's count); default summary.json's ``n_frames``.
+
+    Returns:
+        summary.json's content.
+    """
+    run_dir = Path(run_dir)
+    video = run_dir.name
+    path = run_dir / SUMMARY_FILE
+    if not path.is_file():
+        raise UserError(
+            f"{path}: missing, so the run of video {video!r} is incomplete ({SUMMARY_FILE} is"
+            " written last; the run was interrupted); expected a complete run: run it again."
+        )
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (ValueError, UnicodeDecodeError) as error:
+        raise UserError(
+            f"{path}: not valid JSON ({str(error)[:80]}); expected the {SUMMARY_FILE} of a"
+            f" complete run of video {video!r}."
+        ) from None
+    if not isinstance(summary, dict):
+        raise UserError(f"{path}: expected a JSON object (the run of video {video!r}).")
+    expected = n_frames if n_frames is not None else summary.get("n_frames")
+    frames = run_dir / FRAMES_FILE
+    if not frames.is_file():
+        raise UserError(
+            f"{frames}: missing; expected a row per frame of video {video!r} (run it again)."
+        )
+    if isinstance(expected, int) and not isinstance(expected, bool):
+        try:
+            with frames.open(encoding="utf-8", newline="") as stream:
+                rows = sum(1 for row in csv.reader(stream) if any(v.strip() for v in row)) - 1
+        except (UnicodeDecodeError, csv.Error):
+            rows = -1  # the reader that parses the file names the bad line
+        if 0 <= rows < expected:
+            raise UserError(
+                f"{frames}: cut short, {rows} of {expected} frame rows of video {video!r};"
+                " expected a complete run: run it again."
+            )
+    return summary

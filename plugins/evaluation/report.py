@@ -29,6 +29,7 @@ import numpy as np
 from trackfw.atomic import write_json, write_text
 from trackfw.dataset import list_videos, load_video
 from trackfw.errors import UserError
+from trackfw.outputs import check_complete_run
 from trackfw.records import VideoContext
 from trackfw_plugins.evaluation.clear_mot import (
     ClearMotCounts,
@@ -162,6 +163,8 @@ class DatasetEvaluation:
 
     settings: EvalSettings
     videos: list[VideoEvaluation]
+    pipeline: str | None = None
+    pipeline_hash: str | None = None
 
     def video_rows(self) -> list[dict[str, Any]]:
         """One row of metrics per video (ratios in %, MOTP in pixels)."""
@@ -344,13 +347,47 @@ def evaluate_dataset(
             f"{runs_dir}: no run for video(s) {', '.join(missing)}; expected a sub-folder per video"
             f" of {dataset_dir}."
         )
+    # Every run complete and of one configuration before any is scored.
+    summaries = {
+        video.name: check_complete_run(runs_dir / video.name, video.n_frames) for video in videos
+    }
+    pipeline, pipeline_hash = _one_configuration(runs_dir, summaries)
     evaluations = []
     for video in videos:
         run = read_run(runs_dir / video.name, video.n_frames)
         evaluations.append(evaluate_video(video, run, settings))
         if progress is not None:
             progress(video.name)
-    return DatasetEvaluation(settings=settings, videos=evaluations)
+    return DatasetEvaluation(
+        settings=settings, videos=evaluations, pipeline=pipeline, pipeline_hash=pipeline_hash
+    )
+
+
+def _one_configuration(
+    runs_dir: Path, summaries: dict[str, dict[str, Any]]
+) -> tuple[str | None, str | None]:
+    """The pipeline name and hash shared by every run; a UserError when runs mix configurations.
+
+    Re-running into a folder with another ``--set`` and stopping midway leaves videos of two
+    configurations side by side; their scores would describe neither.
+    """
+    groups: dict[str | None, list[str]] = {}
+    for name, summary in summaries.items():
+        value = summary.get("pipeline_hash")
+        groups.setdefault(value if isinstance(value, str) else None, []).append(name)
+    if len(groups) > 1:
+        described = "; ".join(
+            f"{'no hash' if key is None else 'hash ' + key}: {', '.join(names)}"
+            for key, names in groups.items()
+        )
+        raise UserError(
+            f"{runs_dir}: runs of {len(groups)} pipeline configurations side by side ({described});"
+            " expected one configuration per runs folder: re-run these videos with one pipeline"
+            " and --set, or into an empty --output."
+        )
+    pipeline_hash = next(iter(groups), None)
+    names = {str(summary.get("pipeline")) for summary in summaries.values() if summary.get("pipeline")}
+    return (names.pop() if len(names) == 1 else None), pipeline_hash
 
 
 # ------------------------------------------------------------------------------------- writers
@@ -405,6 +442,8 @@ def json_document(evaluation: DatasetEvaluation) -> dict[str, Any]:
         )
     return _json_value(
         {
+            "pipeline": evaluation.pipeline,
+            "pipeline_hash": evaluation.pipeline_hash,
             "settings": asdict(evaluation.settings),
             "units": UNITS,
             "videos": evaluation.video_rows(),

@@ -6,7 +6,8 @@ A runs folder has one sub-folder per video name, holding:
   frames; the tracked point is the box centre ``(left + w/2, top + h/2)``;
 * ``frames.csv``: one row per frame, header
   ``frame,status,infoless_probability,infoless,n_detections,detections,ms_...``;
-* ``gaps.json`` and ``summary.json`` (optional here; read and checked to be JSON).
+* ``gaps.json`` and ``summary.json`` (optional here; read and checked to be JSON; ``trackfw eval``
+  first checks every run is complete with :func:`trackfw.outputs.check_complete_run`).
 
 Every error is a :class:`trackfw.errors.UserError` that names the file, the line and the field.
 Nothing is dropped silently: a bad value stops the evaluation with one sentence.

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackfw.errors import UserError
+from trackfw.outputs import check_complete_run
 
 Image = NDArray[np.uint8]
 Point = tuple[float, float]
@@ -127,9 +128,7 @@ def load_run_data(run_dir: Path) -> RunData:
         UserError: a missing or malformed file, named with the problem.
     """
     run_dir = Path(run_dir)
-    summary = _read_json(run_dir / "summary.json")
-    if not isinstance(summary, dict):
-        raise UserError(f"{run_dir / 'summary.json'}: expected a JSON object.")
+    summary = check_complete_run(run_dir)
     config = summary.get("config") or {}
     box_size = float((config.get("engine") or {}).get("box_size", 80.0))
     data = RunData(

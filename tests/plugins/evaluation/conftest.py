@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
@@ -69,7 +70,8 @@ def write_run(
             f"{frame + 1},{frame_status},{0.9 if label else 0.1},{label},{len(points)},{text},1,1,1,0"
         )
     (folder / "frames.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
-    (folder / "summary.json").write_text(f'{{"video": "{name}"}}\n', encoding="utf-8")
+    summary = {"video": name, "n_frames": n_frames, "pipeline": "test", "pipeline_hash": "0123456789ab"}
+    (folder / "summary.json").write_text(json.dumps(summary) + "\n", encoding="utf-8")
     (folder / "gaps.json").write_text("[]\n", encoding="utf-8")
     return folder
 

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 
+import pytest
 import typer
 from typer.testing import CliRunner
 
@@ -58,3 +60,102 @@ def test_eval_defaults_to_the_runs_folder_and_raises_user_errors(
     )
     assert isinstance(bad.exception, UserError)
     assert "no such folder" in str(bad.exception)
+
+
+ORACLE_PIPELINE = """\
+name: oracle
+stages:
+  detector:    {type: oracle}
+  classifier:  {type: oracle}
+  tracker:     {type: kalman}
+  gap_matcher: {type: assignment}
+"""
+
+
+def _eval_main(dataset: Path, runs: Path) -> int:
+    from trackfw.cli import main
+
+    return main(["eval", "--dataset", str(dataset), "--runs", str(runs)])
+
+
+def test_eval_refuses_a_run_without_summary_naming_the_video(
+    tmp_path: Path,
+    make_video: Callable[..., Path],
+    make_run: Callable[..., Path],
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    truth = {t: {1: (100.0, 200.0)} for t in range(5)}
+    for name in ("a", "killed"):
+        make_video(tmp_path / "data", name, truth, n_frames=5)
+        make_run(tmp_path / "runs", name, truth, n_frames=5)
+    # summary.json is written last: without it the run was interrupted.
+    (tmp_path / "runs" / "killed" / "summary.json").unlink()
+    assert _eval_main(tmp_path / "data", tmp_path / "runs") == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "'killed'" in lines[0] and "summary.json" in lines[0], lines
+    assert not (tmp_path / "runs" / "eval.csv").exists()
+
+
+def test_eval_refuses_a_cut_short_frames_csv_naming_the_video(
+    tmp_path: Path,
+    make_video: Callable[..., Path],
+    make_run: Callable[..., Path],
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    truth = {t: {1: (100.0, 200.0)} for t in range(10)}
+    make_video(tmp_path / "data", "cut", truth, n_frames=10)
+    run = make_run(tmp_path / "runs", "cut", truth, n_frames=10)
+    frames = (run / "frames.csv").read_text().splitlines()
+    (run / "frames.csv").write_text("\n".join(frames[:5]) + "\n")  # header and 4 of 10 rows
+    assert _eval_main(tmp_path / "data", tmp_path / "runs") == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert "frames.csv" in lines[0] and "'cut'" in lines[0] and "4 of 10" in lines[0], lines
+    assert not (tmp_path / "runs" / "eval.csv").exists()
+
+
+def _two_configurations(tmp_path: Path) -> tuple[Path, Path, str, str]:
+    """Runs of v1 and v2 with the default, then v1 again with another --set (as if v2 was killed)."""
+    from trackfw.cli import main
+    from trackfw_plugins.datasets.points import make_points_video
+
+    dataset, runs = tmp_path / "data", tmp_path / "runs"
+    for name in ("v1", "v2"):
+        make_points_video(dataset / name, n_frames=40, intervals=[(15, 20)], n_others=0)
+    pipeline = tmp_path / "oracle.yaml"
+    pipeline.write_text(ORACLE_PIPELINE)
+    base = ["run", str(pipeline), "--output", str(runs), "-q"]
+    assert main([*base, "--input", str(dataset)]) == 0
+    changed = "stages.tracker.params.gate_px_at_1080=80"
+    assert main([*base, "--input", str(dataset / "v1"), "--set", changed]) == 0
+    first = json.loads((runs / "v2" / "summary.json").read_text())["pipeline_hash"]
+    second = json.loads((runs / "v1" / "summary.json").read_text())["pipeline_hash"]
+    return dataset, runs, first, second
+
+
+def test_eval_refuses_runs_of_two_configurations(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    dataset, runs, first, second = _two_configurations(tmp_path)
+    assert first != second
+    capsys.readouterr()
+    assert _eval_main(dataset, runs) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert first in lines[0] and second in lines[0] and "v1" in lines[0] and "v2" in lines[0]
+    assert not (runs / "eval.json").exists()
+
+
+def test_eval_json_records_the_pipeline_hash(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    dataset, runs, first, _ = _two_configurations(tmp_path)
+    from trackfw.cli import main
+
+    # Running v1 again with the first configuration makes the folder consistent.
+    pipeline = tmp_path / "oracle.yaml"
+    assert main(["run", str(pipeline), "--input", str(dataset / "v1"), "--output", str(runs), "-q"]) == 0
+    assert _eval_main(dataset, runs) == 0, capsys.readouterr().err
+    document = json.loads((runs / "eval.json").read_text())
+    assert document["pipeline_hash"] == first
+    assert document["pipeline"] == "oracle"

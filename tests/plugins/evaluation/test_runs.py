@@ -98,7 +98,7 @@ def test_read_run(tmp_path: Path, make_run: Callable[..., Path]) -> None:
     assert run.name == "v1"
     assert run.tracks == {0: {1: (100.0, 200.0)}}
     assert run.frames.infoless.tolist() == [False, True, False]
-    assert run.summary == {"video": "v1"} and run.gaps == []
+    assert run.summary["video"] == "v1" and run.gaps == []
     (folder / "gaps.json").write_text("{oops", encoding="utf-8")
     with pytest.raises(UserError, match=r"gaps\.json: line 1: invalid JSON"):
         read_run(folder, n_frames=3)

@@ -130,3 +130,15 @@ def test_png_frame_out_of_range_is_an_error_naming_the_valid_range(
     assert len(err.strip().splitlines()) == 1, err
     # Nothing is half done: no video and no still from the valid frame number.
     assert not out.parent.exists() or not any(out.parent.iterdir())
+
+
+def test_render_refuses_a_cut_short_frames_csv_like_eval(
+    run_dir: Path, tmp_path: Path, capsys
+) -> None:
+    frames = run_dir / "clip" / "frames.csv"
+    frames.write_text("\n".join(frames.read_text().splitlines()[:31]) + "\n")  # 30 of 60 rows
+    out = tmp_path / "render" / "clip.mp4"
+    assert main(["render", str(run_dir / "clip"), "--out", str(out)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and "30 of 60" in error and "'clip'" in error, error
+    assert not out.exists()
