@@ -211,9 +211,7 @@ TABLES = _tables()
 
 
 def test_parameter_tables_exist() -> None:
-    assert {"engine", "tracker/kalman", "gap_matcher/window-tps-rpm", "predictor/ar"} <= set(
-        TABLES
-    )
+    assert {"engine", "tracker/kalman", "gap_matcher/window-tps-rpm", "predictor/ar"} <= set(TABLES)
 
 
 @pytest.mark.parametrize("marker", sorted(TABLES))
