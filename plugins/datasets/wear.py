@@ -15,7 +15,7 @@ parts of the output the real frame does not cover are filled with a strongly blu
 continuation of it (no black border, no recognisable head).
 
 Ground truth: every MOT body box gives a head proxy ``(left + width/2, top + 0.08 height)`` with
-size ``0.13 height`` (:func:`trackfw_plugins.datasets.mot.head_proxies`), moved by the frame's
+size ``0.13 height`` (:func:`trackfw.formats.body_heads`, the head-point rule), moved by the frame's
 homography (the size by the homography's local scale). The people of interest are a spatial group
 of 5-10 people visible on frame 1 (a random person and its nearest neighbours); gt.csv holds them on
 every informative frame where they are inside the image, heads.csv every visible person (and the
@@ -53,8 +53,9 @@ from trackfw.dataset import (
     write_targets,
 )
 from trackfw.errors import UserError
+from trackfw.formats import HEAD_FRACTION, HEAD_SIZE_FRACTION, body_head_points, body_heads
 from trackfw.records import Interval
-from trackfw_plugins.datasets.mot import MotSequence, head_proxies, load_mot_sequence, read_frame
+from trackfw_plugins.datasets.mot import MotSequence, load_mot_sequence, read_frame
 from trackfw_plugins.datasets.wear_camera import (
     CameraPose,
     local_scale,
@@ -245,7 +246,7 @@ def plan_video(sequence: MotSequence, settings: WearSettings, seed: int, index: 
         return project
 
     first_boxes = sequence.boxes_at(0)
-    first_heads = head_proxies(first_boxes)[:, :2]
+    first_heads = body_head_points(first_boxes[:, 1:])
     in_source = _inside(first_heads, source_size)
     if not in_source.any():
         raise UserError(
@@ -275,7 +276,7 @@ def plan_video(sequence: MotSequence, settings: WearSettings, seed: int, index: 
         after = view.last + 1
         boxes = sequence.boxes_at(after)
         present = boxes[np.isin(boxes[:, 0].astype(int), targets)]
-        heads = head_proxies(present)[:, :2]
+        heads = body_head_points(present[:, 1:])
         required = math.ceil(0.6 * len(heads))
         poses.append(
             _choose_pose(
@@ -353,7 +354,7 @@ def render_frame(
     if number < 0:
         image, pose, homography = real_view(plan.segment_of(frame))
         boxes = sequence.boxes_at(frame)
-        proxies = head_proxies(boxes)
+        proxies = body_heads(boxes[:, 1:])
         points = transform_points(homography, proxies[:, :2])
         sizes = proxies[:, 2] * local_scale(homography, proxies[:, :2])
         heads = np.column_stack([boxes[:, 0], points, sizes])[_inside(points, plan.output_size)]
@@ -537,7 +538,8 @@ def _meta(sequence: MotSequence, plan: VideoPlan, settings: WearSettings) -> dic
         ],
         "segment_poses": [asdict(pose) for pose in plan.segment_poses],
         "horizontal_fov": settings.horizontal_fov,
-        "head_proxy": "x = left + width/2, y = top + 0.08 height, head_size = 0.13 height",
+        "head_proxy": f"x = left + width/2, y = top + {HEAD_FRACTION:g} height,"
+        f" head_size = {HEAD_SIZE_FRACTION:g} height",
         "group_id_offset": plan.group_id_offset,
     }
 

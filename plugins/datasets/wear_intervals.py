@@ -24,7 +24,8 @@ import cv2
 import numpy as np
 
 from trackfw.errors import UserError
-from trackfw_plugins.datasets.mot import MotSequence, head_proxies, read_frame
+from trackfw.formats import body_heads
+from trackfw_plugins.datasets.mot import MotSequence, read_frame
 
 #: The paper's three kinds of info-less interval.
 WEAR_KINDS = ("sky", "group", "path")
@@ -229,7 +230,7 @@ def make_view(
     offsets = [o for o in range(lowest, highest + 1) if abs(o) >= separation]
     time_offset = int(rng.choice(offsets)) if offsets else 0
     zoom = cover * float(rng.uniform(1.15, 1.5))
-    heads = head_proxies(sequence.boxes_at(first + time_offset))
+    heads = body_heads(sequence.boxes_at(first + time_offset)[:, 1:])
     if len(heads):
         person = heads[int(rng.integers(len(heads)))]
         centre = (float(person[0]), float(person[1] + 0.25 * height))
@@ -294,7 +295,7 @@ def render_view(
             image, matrix, output_size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT_101
         )
         boxes = sequence.boxes_at(source_frame)
-        proxies = head_proxies(boxes)
+        proxies = body_heads(boxes[:, 1:])
         x = out_width / 2 - zoom * (proxies[:, 0] - centre_x)
         y = out_height / 2 + zoom * (proxies[:, 1] - centre_y)
         inside = (x >= 0) & (x < out_width) & (y >= 0) & (y < out_height)

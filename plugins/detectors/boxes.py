@@ -1,4 +1,7 @@
-"""Small helpers shared by the detectors of this plugin: NMS, head points, a frame's pixels."""
+"""Small helpers shared by the detectors of this plugin: NMS, detections from boxes, pixels.
+
+The head point of a box follows the project's one rule, :mod:`trackfw.formats.head_point`.
+"""
 
 from __future__ import annotations
 
@@ -7,10 +10,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackfw.errors import UserError
+from trackfw.formats import HEAD_FRACTION, BoxAnchor, box_points
 from trackfw.records import Detections, FrameData
-
-#: Head point of a full-body box, relative to its top: ``(left + w/2, top + 0.08 h)``.
-BODY_HEAD_RATIO = 0.08
 
 
 def non_maximum_suppression(
@@ -80,38 +81,26 @@ def suppress_nested_centres(
     return order[keep]
 
 
-def head_points(
-    boxes: NDArray[np.float64], point: str, body_ratio: float = BODY_HEAD_RATIO
-) -> NDArray[np.float64]:
-    """The head point of each ``(N, 4)`` box: ``centre`` (a head box), ``top`` or ``body``.
-
-    For ``body`` (a full-body box) the point is ``(left + w/2, top + body_ratio · h)``.
-
-    >>> import numpy as np
-    >>> head_points(np.array([[10.0, 20.0, 40.0, 100.0]]), "body").tolist()
-    [[30.0, 28.0]]
-    >>> head_points(np.array([[10.0, 20.0, 40.0, 100.0]]), "centre").tolist()
-    [[30.0, 70.0]]
-    """
-    x = boxes[:, 0] + 0.5 * boxes[:, 2]
-    if point == "body":
-        y = boxes[:, 1] + body_ratio * boxes[:, 3]
-    elif point == "top":
-        y = boxes[:, 1]
-    else:
-        y = boxes[:, 1] + 0.5 * boxes[:, 3]
-    return np.stack([x, y], axis=1)
-
-
 def detections_from_boxes(
     boxes: NDArray[np.float64],
     scores: NDArray[np.float64],
-    point: str,
-    body_ratio: float = BODY_HEAD_RATIO,
+    point: BoxAnchor | str,
+    body_fraction: float = HEAD_FRACTION,
 ) -> Detections:
-    """Detections with the given boxes, scores and head points taken as ``point``."""
+    """Detections with the given boxes, scores and head points taken as ``point``.
+
+    Args:
+        boxes: ``(N, 4)`` boxes ``(left, top, width, height)``.
+        scores: ``(N,)`` scores.
+        point: what a box outlines (:func:`trackfw.formats.box_points`): ``body``, ``centre``
+            or ``top``.
+        body_fraction: for ``body``, the head centre below the box's top as a share of its
+            height (the project's one head-point rule, default 0.08).
+    """
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
-    return Detections(points=head_points(boxes, point, body_ratio), scores=scores, boxes=boxes)
+    return Detections(
+        points=box_points(boxes, point, body_fraction), scores=scores, boxes=boxes
+    )
 
 
 def frame_pixels(frame: FrameData, detector: str) -> NDArray[np.uint8]:

@@ -1,7 +1,8 @@
 """The ``hog`` detector: OpenCV's HOG people detector, head point taken from the body box (§7.2b).
 
 Dalal-Triggs HOG with OpenCV's default linear SVM for 64×128 pedestrians. The head point of a
-body box is ``(left + w/2, top + 0.08 h)``; scores are the sigmoid of the SVM margin.
+body box follows the project's head-point rule (:mod:`trackfw.formats.head_point`,
+``(left + w/2, top + head_offset · h)``); scores are the sigmoid of the SVM margin.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import cv2
 import numpy as np
 from pydantic import Field
 
+from trackfw.formats import HEAD_FRACTION
 from trackfw.records import Detections, FrameData
 from trackfw.stages import Detector, StageParams
 from trackfw_plugins.detectors.boxes import detections_from_boxes, frame_pixels
@@ -32,7 +34,7 @@ class HogParams(StageParams):
         0.0, ge=0, le=1, description="Drop detections whose sigmoid(margin) is below this."
     )
     head_offset: float = Field(
-        0.08,
+        HEAD_FRACTION,
         ge=0,
         le=1,
         description="Head point below the box top, as a share of the box height (HOG's padded"

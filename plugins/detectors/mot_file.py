@@ -1,13 +1,13 @@
 """The ``mot-file`` detector: precomputed detections in MOTChallenge det.txt format (§7.2c).
 
-Rows are ``frame,id,left,top,width,height,score,...`` with 1-based frames. The file path is a
+Rows are ``frame,id,left,top,width,height,score,...`` with 1-based frames, read by
+:func:`trackfw.formats.read_mot_detections`. The file path is a
 template: ``{video}`` is the video's folder, ``{name}`` its name; a relative path is taken from the
 video's folder. No pixels are read.
 """
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 from typing import Literal
 
@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from trackfw.errors import UserError
+from trackfw.formats import detections_by_frame, read_mot_detections
 from trackfw.records import Detections, FrameData, VideoContext
 from trackfw.stages import Detector, StageParams
 from trackfw_plugins.detectors.boxes import detections_from_boxes
@@ -31,7 +32,8 @@ class MotFileParams(StageParams):
     )
     point: Literal["body", "centre", "top"] = Field(
         "body",
-        description="Head point of a box: body = (left + w/2, top + 0.08 h), centre, top.",
+        description="Head point of a box: body = the head-point rule (left + w/2, top + 0.08 h),"
+        " centre, top.",
     )
     score_threshold: float = Field(
         float("-inf"), description="Drop rows whose raw score is below this."
@@ -39,41 +41,6 @@ class MotFileParams(StageParams):
     score_transform: Literal["clip", "sigmoid"] = Field(
         "clip", description="Map raw scores to [0, 1]: clip, or the logistic function."
     )
-
-
-def read_det_file(path: Path) -> dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]]:
-    """A det.txt as ``{0-based frame: ((N, 4) boxes, (N,) raw scores)}``.
-
-    Raises:
-        UserError: naming the file and line of a malformed row.
-    """
-    grouped: dict[int, list[list[float]]] = {}
-    with path.open(newline="") as handle:
-        for line_number, row in enumerate(csv.reader(handle), start=1):
-            if not row or not "".join(row).strip():
-                continue
-            try:
-                values = [float(value) for value in row[:7]]
-            except ValueError as error:
-                raise UserError(
-                    f"{path}: line {line_number}: expected numbers in"
-                    " frame,id,left,top,width,height,score."
-                ) from error
-            if len(values) < 6:
-                raise UserError(
-                    f"{path}: line {line_number}: {len(values)} columns; expected at least 6"
-                    " (frame,id,left,top,width,height[,score])."
-                )
-            frame = int(values[0])
-            if frame < 1:
-                raise UserError(f"{path}: line {line_number}: frame {frame}; expected >= 1.")
-            score = values[6] if len(values) > 6 else 1.0
-            grouped.setdefault(frame - 1, []).append([*values[2:6], score])
-    table: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
-    for frame, rows in grouped.items():
-        array = np.asarray(rows, dtype=np.float64)
-        table[frame] = (array[:, :4], array[:, 4])
-    return table
 
 
 class MotFileDetector(Detector):
@@ -106,7 +73,7 @@ class MotFileDetector(Detector):
                 f"{path}: detections file not found (mot-file path {self.settings.path!r});"
                 " expected a MOTChallenge det.txt."
             )
-        self.table = read_det_file(path)
+        self.table = detections_by_frame(read_mot_detections(path))
 
     def detect(self, frame: FrameData) -> Detections:
         """The rows of frame ``frame.t`` above the score threshold."""

@@ -87,7 +87,8 @@ class OnnxDetectorParams(StageParams):
         16.0, ge=0, lt=112, description="score_map: R-CNN context inside the window (224-px px)."
     )
     point: Literal["centre", "body", "top"] = Field(
-        "centre", description="Head point of a box: centre, body (top + 0.08 h) or top."
+        "centre",
+        description="Head point of a box: centre, body (the head-point rule, top + 0.08 h) or top.",
     )
     score_threshold: float = Field(0.5, ge=0, le=1, description="Score threshold.")
     nms_iou: float = Field(0.3, gt=0, le=1, description="IoU threshold of cv2.dnn.NMSBoxes.")

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackfw.errors import UserError
+from trackfw.formats import read_mot_text, rows_by_frame
 from trackfw.outputs import check_complete_run
 
 Image = NDArray[np.uint8]
@@ -84,22 +85,12 @@ def _read_json(path: Path) -> Any:
 
 
 def _read_tracks(path: Path) -> dict[int, dict[int, Point]]:
-    """tracks.txt (MOTChallenge rows) as frame -> id -> box centre."""
-    tracks: dict[int, dict[int, Point]] = {}
-    if not path.is_file():
-        raise UserError(f"{path}: missing; expected the run's tracks.")
-    for line_number, values in enumerate(csv.reader(io.StringIO(path.read_text())), start=1):
-        if not values:
-            continue
-        try:
-            frame, target = int(float(values[0])), int(float(values[1]))
-            left, top, width, height = (float(value) for value in values[2:6])
-        except (ValueError, IndexError):
-            raise UserError(
-                f"{path}: line {line_number}: expected frame,id,left,top,width,height,..."
-            ) from None
-        tracks.setdefault(frame - 1, {})[target] = (left + width / 2, top + height / 2)
-    return tracks
+    """tracks.txt (MOTChallenge rows) as 0-based frame -> id -> box centre."""
+    grouped = rows_by_frame(read_mot_text(path), "point")
+    return {
+        frame: {target: (position[0], position[1]) for target, position in targets.items()}
+        for frame, targets in grouped.items()
+    }
 
 
 def _read_frames(path: Path) -> tuple[set[int], set[int]]:

@@ -10,10 +10,8 @@ import pytest
 
 from trackfw.errors import UserError
 from trackfw_plugins.datasets.mot import (
-    head_proxies,
     load_mot_sequence,
     read_frame,
-    read_mot_ground_truth,
     trim_edges,
 )
 
@@ -46,42 +44,6 @@ def test_mot15_rows_are_all_kept_and_sorted_by_id(tmp_path: Path) -> None:
     assert sequence.boxes_at(2).tolist() == [[1.0, 1.0, 1.0, 2.0, 2.0]]
 
 
-def test_mot17_keeps_only_considered_pedestrians(tmp_path: Path) -> None:
-    path = tmp_path / "gt.txt"
-    path.write_text(
-        "1,1,0,0,4,10,1,1,0.9\n"  # kept
-        "1,2,0,0,4,10,0,1,0.9\n"  # flag 0: ignored
-        "1,3,0,0,4,10,1,3,0.9\n"  # class 3 (car): ignored
-        "2,4,0,0,4,10,1,1,0.1\n"
-    )
-    boxes = read_mot_ground_truth(path)
-    assert sorted(boxes) == [0, 1]
-    assert boxes[0][:, 0].tolist() == [1.0]
-    assert boxes[1][:, 0].tolist() == [4.0]
-
-
-@pytest.mark.parametrize(
-    ("content", "expected"),
-    [
-        ("1,1,0,0,4,10,1,1,1\n1,2,0,0,4\n", "line 2: 5 values"),
-        ("1,1,0,0,4,10,1,-1,-1,-1\n1,1,5,5,4,10,1,-1,-1,-1\n", "line 2: id 1 appears twice"),
-        ("1,1,0,zero,4,10,1,-1,-1,-1\n", "line 1: 'zero' is not a number"),
-        ("9,1,0,0,4,10,1,-1,-1,-1\n", "line 1: frame 9 is outside the sequence"),
-        ("1,1,0,0,-4,10,1,-1,-1,-1\n", "expected a positive size"),
-        ("1,1,0,nan,4,10,1,-1,-1,-1\n", "must be finite"),
-        ("1,1,0\n", "expected 6 to 10"),
-    ],
-)
-def test_malformed_ground_truth_names_file_and_line(
-    tmp_path: Path, content: str, expected: str
-) -> None:
-    path = tmp_path / "gt.txt"
-    path.write_text(content)
-    with pytest.raises(UserError, match=expected) as error:
-        read_mot_ground_truth(path, n_frames=3)
-    assert str(path) in str(error.value)
-
-
 def test_without_seqinfo_the_size_comes_from_the_images(tmp_path: Path) -> None:
     folder = _sequence(tmp_path / "Plain", ["2,7,1,2,3,4,1,-1,-1,-1"], n_images=4, seqinfo=False)
     sequence = load_mot_sequence(folder)
@@ -99,19 +61,11 @@ def test_missing_pieces_are_user_errors(tmp_path: Path) -> None:
         load_mot_sequence(tmp_path / "absent")
     folder = _sequence(tmp_path / "s", ["1,1,0,0,4,10,1,-1,-1,-1"])
     (folder / "gt" / "gt.txt").unlink()
-    with pytest.raises(UserError, match=r"gt\.txt: no such file"):
+    with pytest.raises(UserError, match=r"gt\.txt: file not found"):
         load_mot_sequence(folder)
     (folder / "seqinfo.ini").write_text("[Sequence]\nseqLength=10\n")
     with pytest.raises(UserError, match="seqLength is 10"):
         load_mot_sequence(folder)
-
-
-def test_head_proxy_follows_the_documented_formula() -> None:
-    boxes = np.array([[3, 100.0, 50.0, 60.0, 200.0], [4, 0.0, 0.0, 10.0, 30.0]])
-    heads = head_proxies(boxes)
-    assert heads[:, 0].tolist() == [130.0, 5.0]
-    assert np.allclose(heads[:, 1], [50 + 0.08 * 200, 0.08 * 30])
-    assert np.allclose(heads[:, 2], [0.13 * 200, 0.13 * 30])
 
 
 def test_edges_are_trimmed_and_the_inside_kept() -> None:

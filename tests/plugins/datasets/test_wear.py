@@ -16,10 +16,11 @@ from typer.testing import CliRunner
 
 from trackfw.dataset import load_video
 from trackfw.errors import UserError
+from trackfw.formats import HEAD_FRACTION, body_head_points
 from trackfw_plugins.datasets import check as check_module
 from trackfw_plugins.datasets import wear_cli
 from trackfw_plugins.datasets.check import check_dataset
-from trackfw_plugins.datasets.mot import head_proxies, load_mot_sequence
+from trackfw_plugins.datasets.mot import load_mot_sequence
 from trackfw_plugins.datasets.wear import (
     SWAY_AMPLITUDE,
     CameraPose,
@@ -52,7 +53,7 @@ def make_fake_sequence(folder: Path) -> Path:
             y = 16.0 + 2 * (person % 2)
             column, row = round(x), round(y)
             image[row - 2 : row + 3, column - 2 : column + 3] = 255
-            left, top = x - BOX_WIDTH / 2, y - 0.08 * BOX_HEIGHT
+            left, top = x - BOX_WIDTH / 2, y - HEAD_FRACTION * BOX_HEIGHT
             lines.append(
                 f"{frame + 1},{person + 1},{left:.3f},{top:.3f},{BOX_WIDTH},{BOX_HEIGHT},1,-1,-1,-1"
             )
@@ -182,7 +183,7 @@ def test_gt_equals_mot_heads_moved_by_the_recorded_poses(
         )
         homography = pose_homography(pose, (WIDTH, HEIGHT), (WIDTH, HEIGHT), 80.0)
         boxes = sequence.boxes_at(frame - 1)
-        proxy = head_proxies(boxes[boxes[:, 0] == int(row["id"])])[:, :2]
+        proxy = body_head_points(boxes[boxes[:, 0] == int(row["id"])][:, 1:])
         # poses.csv keeps 4 decimals, so allow for that rounding.
         assert transform_points(homography, proxy)[0] == pytest.approx(
             [float(row["x"]), float(row["y"])], abs=0.05
@@ -341,7 +342,7 @@ def test_real_tud_stadtmitte(shared_data: Path, tmp_path: Path) -> None:
         )
         homography = pose_homography(pose, (640, 480), (320, 240), 80.0)
         boxes = sequence.boxes_at(frame - 1)
-        proxy = head_proxies(boxes[boxes[:, 0] == int(row["id"])])[:, :2]
+        proxy = body_head_points(boxes[boxes[:, 0] == int(row["id"])][:, 1:])
         assert transform_points(homography, proxy)[0] == pytest.approx(
             [float(row["x"]), float(row["y"])], abs=0.05
         )

@@ -9,7 +9,7 @@ import pytest
 
 from trackfw.errors import UserError
 from trackfw.records import FrameData, VideoContext
-from trackfw_plugins.detectors.mot_file import MotFileDetector, MotFileParams, read_det_file
+from trackfw_plugins.detectors.mot_file import MotFileDetector, MotFileParams
 
 ROWS = (
     "1,-1,10,20,40,100,0.9,-1,-1,-1\n1,-1,100,50,20,50,0.2,-1,-1,-1\n3,-1,0,0,10,10,5.0,-1,-1,-1\n"
@@ -64,13 +64,14 @@ def test_template_threshold_point_and_sigmoid(tmp_path: Path) -> None:
 def test_missing_file_and_bad_rows_are_user_errors(tmp_path: Path) -> None:
     with pytest.raises(UserError, match="not found"):
         MotFileDetector().start(_video(tmp_path))
-    bad = tmp_path / "det.txt"
+    (tmp_path / "det").mkdir()
+    bad = tmp_path / "det" / "det.txt"
     bad.write_text("1,-1,10,20,40,100,0.9\n2,-1,ten,20,40,100,0.9\n")
-    with pytest.raises(UserError, match="line 2"):
-        read_det_file(bad)
+    with pytest.raises(UserError, match=r"det\.txt: line 2: left is 'ten'"):
+        MotFileDetector().start(_video(tmp_path))
     bad.write_text("0,-1,10,20,40,100,0.9\n")
-    with pytest.raises(UserError, match="frame 0"):
-        read_det_file(bad)
+    with pytest.raises(UserError, match="line 1: frame 0 is outside the video"):
+        MotFileDetector().start(_video(tmp_path))
 
 
 def test_real_mot15_detections(shared_data: Path) -> None:

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pytest
 
+from trackfw.formats import read_mot_text, rows_by_frame
 from trackfw_plugins.evaluation.clear_mot import ClearMotCounts, build_sequence, clear_mot
 from trackfw_plugins.evaluation.hota import HotaCounts, hota_counts
 from trackfw_plugins.evaluation.identity import IdentityCounts, identity_counts
-from trackfw_plugins.evaluation.runs import read_mot_text, rows_by_frame
 
 # Columns: IDF1 IDP IDR Rcll Prcn GT MT PT ML FP FN IDs FM MOTA MOTP (EXPECTED_VALUES.md).
 EXPECTED = {

@@ -9,41 +9,9 @@ import numpy as np
 import pytest
 
 from trackfw.errors import UserError
-from trackfw_plugins.evaluation.runs import read_frames_csv, read_mot_text, read_run, rows_by_frame
+from trackfw_plugins.evaluation.runs import read_frames_csv, read_run
 
 HEADER = "frame,status,infoless_probability,infoless,n_detections,detections,ms_detector,ms_classifier,ms_tracker,ms_gap_matcher"
-
-
-def test_tracks_are_box_centres_on_0_based_frames(tmp_path: Path) -> None:
-    path = tmp_path / "tracks.txt"
-    path.write_text(
-        "1,3,60.0,160.0,80.0,80.0,1,-1,-1,-1\n\n2,3,62.0,160.0,80.0,80.0,1,-1,-1,-1\n",
-        encoding="utf-8",
-    )
-    rows = read_mot_text(path, n_frames=2)
-    assert rows.lines.tolist() == [1, 3]
-    assert rows_by_frame(rows) == {0: {3: (100.0, 200.0)}, 1: {3: (102.0, 200.0)}}
-    assert rows_by_frame(rows, "box", frame_offset=0)[1][3] == (60.0, 160.0, 80.0, 80.0)
-
-
-@pytest.mark.parametrize(
-    ("content", "message"),
-    [
-        ("1,3,60.0,160.0\n", "line 1: 4 values; expected at least 6"),
-        ("1,3,60,160,80,80\n1,x,60,160,80,80\n", "line 2: id is 'x'; expected an integer"),
-        ("1,3,nan,160,80,80\n", "line 1: left is 'nan'; expected a finite number"),
-        ("9,3,60,160,80,80\n", "line 1: frame 9 is outside the video; expected 1..5"),
-        ("0,3,60,160,80,80\n", "line 1: frame 0 is outside the video"),
-        ("1,3,60,160,80,80\n1,3,61,160,80,80\n", "line 2: id 3 appears twice in frame 1"),
-    ],
-)
-def test_malformed_tracks_name_file_and_line(tmp_path: Path, content: str, message: str) -> None:
-    path = tmp_path / "tracks.txt"
-    path.write_text(content, encoding="utf-8")
-    with pytest.raises(UserError) as error:
-        read_mot_text(path, n_frames=5)
-    assert str(path) in str(error.value)
-    assert message in str(error.value)
 
 
 def test_frames_csv(tmp_path: Path) -> None:

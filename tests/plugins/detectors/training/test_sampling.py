@@ -23,12 +23,12 @@ from trackfw_plugins.detectors.training.sampling import (
 def test_mot_heads_uses_the_body_box_proxy_and_skips_ignored_rows(tmp_path: Path) -> None:
     gt = tmp_path / "gt.txt"
     gt.write_text(
-        "1,1,10,20,40,100,1,-1,-1,-1\n1,2,0,0,10,10,0,-1,-1,-1\n"
+        "1,1,10,20,40,100,1,1,1.0\n1,2,0,0,10,10,0,1,1.0\n"
         "2,1,0,0,20,50,1,2,1.0\n2,3,0,0,20,50,1,1,1.0\n"
     )
     heads = mot_heads(gt)
     assert sorted(heads) == [0, 1]
-    assert heads[0].tolist() == [[30.0, 28.0, MOT_HEAD_SIZE_RATIO * 100]]
+    assert heads[0].tolist() == [[30.0, 28.0, MOT_HEAD_SIZE_RATIO * 100]]  # flag 0 left out
     assert heads[1].tolist() == [[10.0, 4.0, MOT_HEAD_SIZE_RATIO * 50]]  # class 2 left out
 
 
