@@ -28,13 +28,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
+from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw.errors import UserError
 from trackfw.formats.text import check_frame, read_text
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 #: The leading columns every MOTChallenge line has.
 MOT_COLUMNS = ("frame", "id", "left", "top", "width", "height")
@@ -70,7 +67,7 @@ class MotRows:
     def __len__(self) -> int:
         return len(self.frames)
 
-    def select(self, keep: NDArray[np.bool_] | IntArray) -> MotRows:
+    def select(self, keep: BoolArray | IntArray) -> MotRows:
         """The rows picked by a boolean mask or an index array."""
         return MotRows(
             frames=self.frames[keep],
