@@ -46,7 +46,7 @@ def folder_frames(folder: Path, count: int) -> list[np.ndarray]:
 
 
 def time_classifier(params: SvmParams, frames: list[np.ndarray]) -> np.ndarray:
-    """Milliseconds of ``classify`` + ``feedback`` per frame (the first frame excluded)."""
+    """Milliseconds of ``classify`` per frame (the first frame excluded)."""
     video = VideoContext("bench", "bench", len(frames), WIDTH, HEIGHT)
     classifier = SvmClassifier(params)
     classifier.start(video)
@@ -55,8 +55,7 @@ def time_classifier(params: SvmParams, frames: list[np.ndarray]) -> np.ndarray:
     for t, image in enumerate(frames):
         detections = Detections.from_points(rng.random((8, 2)) * [WIDTH, HEIGHT])
         started = time.perf_counter()
-        decision = classifier.classify(FrameData(t, image, video), detections)
-        classifier.feedback(t, decision.infoless and t > 0)
+        classifier.classify(FrameData(t, image, video, first=t == 0), detections)
         timings.append((time.perf_counter() - started) * 1e3)
     return np.asarray(timings[1:])
 

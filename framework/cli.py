@@ -121,7 +121,8 @@ def validate_command(
         f"[green]ok[/green] {pipeline}: pipeline {loaded.name!r} (hash {loaded.content_hash})"
     )
     for kind, spec in loaded.stages.items():
-        console.print(f"  {kind}: {spec['type']} {json.dumps(spec['params'], sort_keys=True)}")
+        data = spec.as_data()
+        console.print(f"  {kind}: {data['type']} {json.dumps(data['params'], sort_keys=True)}")
 
 
 def plugins_command(

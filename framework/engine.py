@@ -24,7 +24,7 @@ from trackfw.pipeline import Pipeline
 from trackfw.records import NO_MATCH, Detections, FrameData, GapProblem, Interval, VideoContext
 from trackfw.registry import Registry
 from trackfw.stage_cache import CACHED_KINDS, StageCache, StageReplay
-from trackfw.stages import STAGE_KINDS, Classifier, Detector, GapMatcher, Stage, Tracker
+from trackfw.stages import STAGE_KINDS, PipelineStages, Stage
 from trackfw.video_io import iter_frames
 
 ProgressCallback = Callable[[int], None]
@@ -75,15 +75,14 @@ class VideoRun:
         return len(self.frames) / self.seconds if self.seconds > 0 else float("inf")
 
 
-def stages_need_pixels(stages: dict[str, Stage]) -> bool:
+def stages_need_pixels(stages: dict[str, Stage[Any]]) -> bool:
     """True when any stage (or a nested stage) reads pixels."""
     return any(stage.needs_pixels for stage in stages.values())
 
 
-def _check_ground_truth(stages: dict[str, Stage], video: VideoContext) -> None:
-    for kind, stage in stages.items():
-        nested = list(stage.nested_stages.values())
-        for candidate in (stage, *nested):
+def _check_ground_truth(stages: PipelineStages, video: VideoContext) -> None:
+    for kind, stage in stages.by_kind().items():
+        for candidate in stage.with_nested():
             if candidate.needs_ground_truth and video.ground_truth is None:
                 raise UserError(
                     f"{video.path}: the {kind.replace('_', ' ')} {candidate.name!r} needs ground truth"
@@ -91,12 +90,12 @@ def _check_ground_truth(stages: dict[str, Stage], video: VideoContext) -> None:
                 )
 
 
-def check_videos(stages: dict[str, Stage], videos: Sequence[VideoContext]) -> None:
+def check_videos(stages: PipelineStages, videos: Sequence[VideoContext]) -> None:
     """Raise the UserError a run would meet later: missing ground truth or missing frames.
 
     Called before anything is written, so a bad input never leaves half a run behind.
     """
-    decode = stages_need_pixels(stages)
+    decode = stages.needs_pixels
     for video in videos:
         _check_ground_truth(stages, video)
         if decode:
@@ -176,27 +175,23 @@ class Engine:
             UserError: the video lacks what a stage needs (ground truth for oracle stages, an
                 annotation on the first frame).
         """
-        stages = self.pipeline.build(self.registry)
+        stages = self.pipeline.build()
         _check_ground_truth(stages, video)
         replay: StageReplay | None = None
         cache_key = ""
         if cache is not None:
             cache_key = cache.key(self.pipeline, video, self.registry)
             replay = cache.load(cache_key, video.n_frames, video.name)
-        live = (
-            stages
-            if replay is None
-            else {kind: stage for kind, stage in stages.items() if kind not in CACHED_KINDS}
-        )
+        live = {
+            kind: stage
+            for kind, stage in stages.by_kind().items()
+            if replay is None or kind not in CACHED_KINDS
+        }
         for stage in live.values():
-            for candidate in (stage, *stage.nested_stages.values()):
+            for candidate in stage.with_nested():
                 candidate.start(video)
-        detector = stages["detector"]
-        classifier = stages["classifier"]
-        tracker = stages["tracker"]
-        gap_matcher = stages["gap_matcher"]
-        assert isinstance(detector, Detector) and isinstance(classifier, Classifier)
-        assert isinstance(tracker, Tracker) and isinstance(gap_matcher, GapMatcher)
+        detector, classifier = stages.detector, stages.classifier
+        tracker, gap_matcher = stages.tracker, stages.gap_matcher
         decode = stages_need_pixels(live)
         width, height = video.width, video.height
         clock = time.perf_counter
@@ -222,7 +217,8 @@ class Engine:
             if status != "ok":
                 frames.append(FrameRecord(t, status))
                 continue
-            frame = FrameData(t, image, video)
+            first = last_normal_t is None
+            frame = FrameData(t, image, video, first)
             record = FrameRecord(t, "ok")
             if replay is None:
                 tick = clock()
@@ -241,10 +237,7 @@ class Engine:
                 record.milliseconds["detector"] = detector_ms
                 record.milliseconds["classifier"] = classifier_ms
                 tick = clock()
-            first = last_normal_t is None
             infoless = said_infoless and not first
-            if replay is None:
-                classifier.feedback(t, infoless)
             record.probability = probability
             record.infoless = infoless
             record.detections = detections

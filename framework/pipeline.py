@@ -15,14 +15,14 @@ import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from trackfw.errors import UserError
 from trackfw.registry import Registry, unknown_name_message
-from trackfw.stages import STAGE_KINDS, Stage
+from trackfw.stages import STAGE_KINDS, PipelineStages, Stage, StageParams
 
 TOP_LEVEL_KEYS = ("name", "description", "input", "stages", "engine")
 STAGE_KEYS = ("type", "params")
@@ -45,6 +45,35 @@ class EngineOptions(BaseModel):
     )
 
 
+@dataclass(frozen=True)
+class StageConfig:
+    """A validated stage: its class, its parameter model and the stages configured inside it.
+
+    Attributes:
+        kind: the stage kind (``detector``, ..., or ``predictor`` for a nested stage).
+        name: the plugin name (YAML ``type``).
+        cls: the registered class.
+        params: the validated, fully defaulted parameters (an instance of ``cls.Params``).
+        nested: parameter name -> nested stage (a gap matcher's ``predictor``).
+    """
+
+    kind: str
+    name: str
+    cls: type[Stage[Any]]
+    params: StageParams
+    nested: dict[str, StageConfig] = field(default_factory=dict)
+
+    def build(self) -> Stage[Any]:
+        """A fresh instance (nested stages built first) from the already validated parameters."""
+        return self.cls(self.params, **{key: spec.build() for key, spec in self.nested.items()})
+
+    def as_data(self) -> dict[str, Any]:
+        """``{"type", "params"}`` as plain data, nested stages in the same shape (YAML-ready)."""
+        params = self.params.model_dump(mode="json")
+        params.update({key: spec.as_data() for key, spec in self.nested.items()})
+        return {"type": self.name, "params": params}
+
+
 @dataclass
 class Pipeline:
     """A validated pipeline.
@@ -53,19 +82,29 @@ class Pipeline:
         name: the pipeline's name.
         description: free text.
         input: default input (``builtin:NAME`` or a path), or None.
-        stages: kind -> ``{"type": ..., "params": {...}}`` with validated, fully defaulted params.
+        stages: kind -> validated stage configuration.
         engine: options of the online loop.
         source: the YAML file, or None when built in memory.
-        config: the complete configuration as plain data (for hashing and summary.json).
     """
 
     name: str
     description: str
     input: str | None
-    stages: dict[str, dict[str, Any]]
+    stages: dict[str, StageConfig]
     engine: EngineOptions
     source: Path | None = None
-    config: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def config(self) -> dict[str, Any]:
+        """The complete configuration as plain data (hashing, summary.json, bench jobs).
+
+        It validates again to the same pipeline: ``validate_pipeline(config)``.
+        """
+        return {
+            "name": self.name,
+            "stages": {kind: spec.as_data() for kind, spec in self.stages.items()},
+            "engine": self.engine.model_dump(),
+        }
 
     @property
     def content_hash(self) -> str:
@@ -73,9 +112,11 @@ class Pipeline:
         canonical = json.dumps(self.config, sort_keys=True, default=str)
         return hashlib.sha256(canonical.encode()).hexdigest()[:12]
 
-    def build(self, registry: Registry) -> dict[str, Stage]:
+    def build(self) -> PipelineStages:
         """Fresh stage instances, one per kind (call once per video)."""
-        return {kind: registry.build_stage(kind, spec) for kind, spec in self.stages.items()}
+        # resolve_stage checked each class against its kind's base when it was registered.
+        built = {kind: self.stages[kind].build() for kind in STAGE_KINDS}
+        return PipelineStages(**cast(dict[str, Any], built))
 
 
 class _StrictLoader(yaml.SafeLoader):
@@ -191,26 +232,39 @@ def _unknown_key(path: str, key: Any, valid: Sequence[str]) -> str:
     return f"{path}{'.' if path else ''}{key}: unknown key{hint} (valid: {', '.join(valid)})"
 
 
-def _validate_stage(
-    registry: Registry, kind: str, spec: Any, path: str, problems: list[str], inline: bool = False
-) -> dict[str, Any] | None:
-    """Check one stage spec; returns ``{"type", "params"}`` with fully defaulted params.
+def resolve_stage(
+    registry: Registry, kind: str, spec: Any, path: str, problems: list[str]
+) -> StageConfig | None:
+    """Validate one ``{type, params}`` stage, its nested stages included (the one place).
 
-    ``inline`` marks a nested stage whose parameters sit beside its ``type`` in the YAML
-    (``predictor: {type: ar, orders: [1, 2]}``), so their paths have no ``.params`` part.
+    A nested stage (a gap matcher's ``predictor``) sits in its parent's ``params`` and is written
+    like any stage: ``predictor: {type: ar, params: {orders: [1, 2]}}``; when it is left out the
+    parent class's ``default_<name>`` type is used with default parameters.
+
+    Args:
+        registry: the plugin registry.
+        kind: the stage kind.
+        spec: the YAML value.
+        path: its YAML path, for messages (``stages.gap_matcher``).
+        problems: receives one line per problem.
+
+    Returns:
+        The validated configuration, or None when ``problems`` got a line.
     """
-    params_path = path if inline else f"{path}.params"
     if not isinstance(spec, Mapping):
         problems.append(
             f"{path}: expected a mapping with 'type' and optional 'params', got {spec!r}"
         )
         return None
-    for key in spec:
-        if key not in STAGE_KEYS:
-            problems.append(_unknown_key(path, key, STAGE_KEYS))
-    if inline and spec.get("params") is not None and not isinstance(spec.get("params"), Mapping):
-        problems.append(f"{path}: expected a mapping")
-        return None
+    unknown = [key for key in spec if key not in STAGE_KEYS]
+    for key in unknown:
+        line = _unknown_key(path, key, STAGE_KEYS)
+        if kind not in STAGE_KINDS:
+            # Before issue 15 a nested stage's parameters sat beside its type.
+            line += (
+                f"; a {kind}'s parameters go under 'params' ({{type: ..., params: {{{key}: ...}}}})"
+            )
+        problems.append(line)
     type_name = spec.get("type")
     if not isinstance(type_name, str) or not type_name:
         problems.append(
@@ -222,43 +276,33 @@ def _validate_stage(
             f"{path}.type: {unknown_name_message(kind, type_name, registry.names(kind))}"
         )
         return None
-    entry = registry.stages[(kind, type_name)]
+    cls = registry.stages[(kind, type_name)].cls
     params = spec.get("params") or {}
     if not isinstance(params, Mapping):
         problems.append(f"{path}.params: expected a mapping of parameters, got {params!r}")
         return None
     params = dict(params)
-    resolved: dict[str, Any] = {}
-    for key, nested_kind in entry.cls.nested.items():
+    nested: dict[str, StageConfig] = {}
+    for key, nested_kind in cls.nested.items():
         nested_spec = params.pop(key, None)
         if nested_spec is None:
-            nested_spec = {"type": getattr(entry.cls, f"default_{key}", None)}
-        if not isinstance(nested_spec, Mapping):
-            problems.append(
-                f"{params_path}.{key}: expected a mapping with 'type', got {nested_spec!r}"
-            )
-            continue
-        nested_params = dict(nested_spec)
-        nested_type = nested_params.pop("type", None)
-        checked = _validate_stage(
-            registry,
-            nested_kind,
-            {"type": nested_type, "params": nested_params},
-            f"{params_path}.{key}",
-            problems,
-            inline=True,
+            nested_spec = {"type": getattr(cls, f"default_{key}", None)}
+        checked = resolve_stage(
+            registry, nested_kind, nested_spec, f"{path}.params.{key}", problems
         )
         if checked is not None:
-            resolved[key] = {"type": checked["type"], **checked["params"]}
+            nested[key] = checked
     try:
-        model = entry.cls.Params(**params)
+        model = cls.Params(**params)
     except ValidationError as error:
-        problems.extend(_pydantic_problems(error, params_path, entry.cls.Params))
+        problems.extend(_pydantic_problems(error, f"{path}.params", cls.Params))
         return None
     except UserError as error:
-        problems.extend(f"{params_path}: {line}" for line in error.lines)
+        problems.extend(f"{path}.params: {line}" for line in error.lines)
         return None
-    return {"type": type_name, "params": {**model.model_dump(mode="json"), **resolved}}
+    if unknown or len(nested) != len(cls.nested):
+        return None
+    return StageConfig(kind, type_name, cls, model, nested)
 
 
 def load_pipeline(
@@ -330,7 +374,7 @@ def validate_pipeline(
     except TypeError:
         problems.append("engine: expected a mapping")
     stages_data = data.get("stages")
-    stages: dict[str, dict[str, Any]] = {}
+    stages: dict[str, StageConfig] = {}
     if not isinstance(stages_data, Mapping):
         problems.append(f"stages: expected a mapping with {', '.join(STAGE_KINDS)}")
     else:
@@ -343,7 +387,7 @@ def validate_pipeline(
                     f"stages.{kind}: missing; expected {{type: ...}} ({', '.join(registry.names(kind))})"
                 )
                 continue
-            checked = _validate_stage(registry, kind, stages_data[kind], f"stages.{kind}", problems)
+            checked = resolve_stage(registry, kind, stages_data[kind], f"stages.{kind}", problems)
             if checked is not None:
                 stages[kind] = checked
     if problems:
@@ -355,12 +399,11 @@ def validate_pipeline(
         stages=stages,
         engine=engine,
         source=path,
-        config={"name": name, "stages": stages, "engine": engine.model_dump()},
     )
     if build_check:
         for kind, spec in stages.items():
             try:
-                registry.build_stage(kind, spec)
+                spec.build()
             except UserError as error:
                 problems.extend(f"stages.{kind}: {line}" for line in error.lines)
         if problems:

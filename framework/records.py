@@ -94,11 +94,15 @@ class FrameData:
         image: ``(H, W, 3)`` uint8 BGR pixels, or None when no stage of the pipeline needs
             pixels (the engine then does not decode the video).
         video: the video this frame belongs to.
+        first: whether this is the run's first readable frame, the one the targets are
+            initialised on: it is informative whatever a classifier says (the engine enforces
+            it; a classifier with recursive state decides it informative too).
     """
 
     t: int
     image: NDArray[np.uint8] | None
     video: VideoContext
+    first: bool = False
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,7 @@ from pluggy import HookImpl
 from pydantic import BaseModel, ValidationError
 
 from trackfw import PLUGIN_API_VERSION, __version__, hookspecs
-from trackfw.errors import PluginError
+from trackfw.errors import PluginError, UserError
 from trackfw.stages import STAGE_BASES, Stage, StageParams
 
 ENTRY_POINT_GROUP = "trackfw"
@@ -61,7 +61,7 @@ class StageEntry:
 
     kind: str
     name: str
-    cls: type[Stage]
+    cls: type[Stage[Any]]
     source: PluginSource
 
 
@@ -130,23 +130,23 @@ class Registry:
 
     # -------------------------------------------------------------------------- registration
 
-    def add_detector(self, cls: type[Stage]) -> None:
+    def add_detector(self, cls: type[Stage[Any]]) -> None:
         """Register a :class:`trackfw.stages.Detector` subclass."""
         self._add("detector", cls)
 
-    def add_classifier(self, cls: type[Stage]) -> None:
+    def add_classifier(self, cls: type[Stage[Any]]) -> None:
         """Register a :class:`trackfw.stages.Classifier` subclass."""
         self._add("classifier", cls)
 
-    def add_tracker(self, cls: type[Stage]) -> None:
+    def add_tracker(self, cls: type[Stage[Any]]) -> None:
         """Register a :class:`trackfw.stages.Tracker` subclass."""
         self._add("tracker", cls)
 
-    def add_gap_matcher(self, cls: type[Stage]) -> None:
+    def add_gap_matcher(self, cls: type[Stage[Any]]) -> None:
         """Register a :class:`trackfw.stages.GapMatcher` subclass."""
         self._add("gap_matcher", cls)
 
-    def add_predictor(self, cls: type[Stage]) -> None:
+    def add_predictor(self, cls: type[Stage[Any]]) -> None:
         """Register a :class:`trackfw.stages.Predictor` subclass."""
         self._add("predictor", cls)
 
@@ -224,29 +224,19 @@ class Registry:
         except KeyError:
             raise KeyError(unknown_name_message("executor", name, sorted(self.executors))) from None
 
-    def build_stage(self, kind: str, spec: Mapping[str, Any]) -> Stage:
-        """Build a stage from ``{"type": name, "params": {...}}`` (nested stages inline).
+    def build_stage(self, kind: str, spec: Mapping[str, Any]) -> Stage[Any]:
+        """Build a stage from ``{"type": name, "params": {...}}`` (nested stages as in a pipeline).
 
         Raises:
-            KeyError: unknown type. ValidationError: bad parameters.
+            UserError: unknown type or bad parameters, one line per problem.
         """
-        entry = self.get(kind, str(spec.get("type")))
-        params = dict(spec.get("params") or {})
-        nested: dict[str, Stage] = {}
-        for key, nested_kind in entry.cls.nested.items():
-            nested_spec = dict(params.pop(key, None) or {"type": _default_nested(entry.cls, key)})
-            nested_type = nested_spec.pop("type", None)
-            nested[key] = self.build_stage(
-                nested_kind, {"type": nested_type, "params": nested_spec}
-            )
-        return entry.cls(entry.cls.Params(**params), **nested)
+        from trackfw.pipeline import resolve_stage  # the pipeline module imports this one
 
-
-def _default_nested(cls: type[Stage], key: str) -> str:
-    default = getattr(cls, f"default_{key}", None)
-    if not isinstance(default, str):
-        raise KeyError(f"{cls.name!r} needs a {key!r} with a 'type'")
-    return default
+        problems: list[str] = []
+        config = resolve_stage(self, kind, spec, kind, problems)
+        if config is None:
+            raise UserError(*problems)
+        return config.build()
 
 
 def unknown_name_message(kind: str, name: str, known: Iterable[str]) -> str:

@@ -67,7 +67,7 @@ def prepare_run(
             f"{pipeline_path}: input: missing; give --input or set 'input:' in the pipeline."
         )
     videos = [load_video(path) for path in list_videos(source)]
-    check_videos(pipeline.build(registry), videos)
+    check_videos(pipeline.build(), videos)
     return PreparedRun(pipeline, videos, output or Path("runs") / pipeline.name)
 
 

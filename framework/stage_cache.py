@@ -39,7 +39,7 @@ from trackfw.atomic import atomic_open
 from trackfw.records import Detections, VideoContext
 
 if TYPE_CHECKING:
-    from trackfw.pipeline import Pipeline
+    from trackfw.pipeline import Pipeline, StageConfig
     from trackfw.registry import Registry
 
 #: The stage kinds whose outputs are cached, in the order the engine runs them.
@@ -138,33 +138,26 @@ def _stage_code(registry: Registry | None, kind: str, type_name: str) -> list[st
     return identity
 
 
-def _resources(registry: Registry | None, kind: str, spec: Mapping[str, Any]) -> list[Path]:
+def _resources(registry: Registry | None, spec: StageConfig) -> list[Path]:
     """Files a stage reads besides those its parameters name (see ``Stage.resource_files``)."""
-    if registry is None or (kind, spec.get("type")) not in registry.stages:
+    if registry is None or (spec.kind, spec.name) not in registry.stages:
         return []
-    entry = registry.stages[(kind, str(spec.get("type")))]
-    return entry.cls.resource_files(entry.cls.Params(**(spec.get("params") or {})))
+    return spec.cls.resource_files(spec.params)
 
 
 def cache_key(pipeline: Pipeline, video: VideoContext, registry: Registry | None = None) -> str:
     """The key of ``video`` run through the detector and classifier of ``pipeline``."""
-    stages = {kind: pipeline.stages[kind] for kind in CACHED_KINDS}
+    configs = {kind: pipeline.stages[kind] for kind in CACHED_KINDS}
+    stages = {kind: spec.as_data() for kind, spec in configs.items()}
     recipe = {
         "format": CACHE_FORMAT,
         "video": video_fingerprint(video.path),
         "n_frames": video.n_frames,
         "stages": stages,
-        "code": {
-            kind: _stage_code(registry, kind, str(spec.get("type")))
-            for kind, spec in stages.items()
-        },
+        "code": {kind: _stage_code(registry, kind, spec.name) for kind, spec in configs.items()},
         "files": _named_files(stages),
         "resources": _named_files(
-            [
-                str(path)
-                for kind, spec in stages.items()
-                for path in _resources(registry, kind, spec)
-            ]
+            [str(path) for spec in configs.values() for path in _resources(registry, spec)]
         ),
     }
     canonical = json.dumps(recipe, sort_keys=True, default=str)

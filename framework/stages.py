@@ -3,7 +3,10 @@
 A stage class declares:
 
 * ``name``: the plugin type used in YAML (``type: kalman``);
-* ``Params``: a :class:`StageParams` pydantic model, every field typed, defaulted and described;
+* its parameters: a :class:`StageParams` pydantic model, every field typed, defaulted and
+  described, given as the type argument of its base (``class Mine(Detector[MineParams])``);
+  the class attribute ``Params`` is set from it, and every instance holds its validated
+  parameters as ``self.params``, typed as that model;
 * ``uses_pixels``: whether it reads frame pixels (a pipeline whose stages need none is run
   without decoding the video);
 * ``needs_ground_truth``: whether it reads the dataset's ground truth (oracle stages).
@@ -15,9 +18,10 @@ frame. Stages keep their own per-video state; they are never shared between thre
 from __future__ import annotations
 
 import abc
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar, Generic, TypeVar, cast, get_args, get_origin
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
@@ -47,21 +51,60 @@ class StageParams(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
 
 
-class Stage(abc.ABC):  # noqa: B024 - abstract by intent; each kind adds its methods
-    """Common base of every stage kind."""
+P = TypeVar("P", bound=StageParams)
+"""The parameter model of a stage class."""
+
+
+def _params_argument(cls: type) -> type[StageParams] | None:
+    """The concrete ``StageParams`` subclass ``cls`` names as its base's type argument, if any."""
+    for base in getattr(cls, "__orig_bases__", ()):
+        origin = get_origin(base)
+        if isinstance(origin, type) and issubclass(origin, Stage):
+            for argument in get_args(base):
+                if isinstance(argument, type) and issubclass(argument, StageParams):
+                    return argument
+    return None
+
+
+class Stage(abc.ABC, Generic[P]):
+    """Common base of every stage kind, generic in its parameter model ``P``."""
 
     kind: ClassVar[str] = ""
     name: ClassVar[str] = ""
+    #: The parameter model; set from the type argument (``Detector[MineParams]``) when the class
+    #: does not assign it itself.
     Params: ClassVar[type[StageParams]] = StageParams
     uses_pixels: ClassVar[bool] = False
     needs_ground_truth: ClassVar[bool] = False
     #: Parameters that hold another configured stage, mapped to its kind
-    #: (``{"predictor": "predictor"}`` for gap matchers). The pipeline loader validates and builds
-    #: them and passes the instances to ``__init__`` as keyword arguments.
+    #: (``{"predictor": "predictor"}`` for gap matchers). The pipeline resolves them
+    #: (``trackfw.pipeline.resolve_stage``) and passes the built instances to ``__init__`` as
+    #: keyword arguments.
     nested: ClassVar[dict[str, str]] = {}
 
-    def __init__(self, params: StageParams | None = None, **nested: Stage) -> None:
-        self.params = params if params is not None else self.Params()
+    params: P
+    """The validated parameters of this instance."""
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        argument = _params_argument(cls)
+        if argument is None:
+            return
+        if "Params" not in cls.__dict__:
+            cls.Params = argument
+        elif not issubclass(cls.Params, argument):
+            raise TypeError(
+                f"{cls.__qualname__}.Params is {cls.Params.__qualname__} but the class is generic"
+                f" in {argument.__qualname__}"
+            )
+
+    def __init__(self, params: P | None = None, **nested: Stage[Any]) -> None:
+        if params is not None and not isinstance(params, self.Params):
+            raise TypeError(
+                f"{type(self).__qualname__} takes {self.Params.__qualname__},"
+                f" got {type(params).__qualname__}"
+            )
+        self.params = params if params is not None else cast(P, self.Params())
         self.nested_stages = nested
 
     @property
@@ -69,15 +112,21 @@ class Stage(abc.ABC):  # noqa: B024 - abstract by intent; each kind adds its met
         """Whether this configured instance reads pixels (may depend on its parameters)."""
         return self.uses_pixels or any(stage.needs_pixels for stage in self.nested_stages.values())
 
+    def with_nested(self) -> Iterator[Stage[Any]]:
+        """This stage, then every stage configured inside it (a gap matcher's predictor)."""
+        yield self
+        for stage in self.nested_stages.values():
+            yield from stage.with_nested()
+
     @classmethod
-    def resource_files(cls, params: StageParams) -> list[Path]:
+    def resource_files(cls, params: P) -> list[Path]:
         """Files the configured stage reads that its parameters do not name (a shipped model).
 
         Caches key on them, so that a retrained shipped model invalidates cached outputs.
         """
         return []
 
-    def start(self, video: VideoContext) -> None:  # noqa: B027 - optional hook
+    def start(self, video: VideoContext) -> None:
         """Reset per-video state before the first frame of ``video``."""
 
     @classmethod
@@ -87,7 +136,7 @@ class Stage(abc.ABC):  # noqa: B024 - abstract by intent; each kind adds its met
         return doc.splitlines()[0] if doc else ""
 
 
-class Detector(Stage):
+class Detector(Stage[P]):
     """Finds head points on a frame."""
 
     kind = "detector"
@@ -105,24 +154,22 @@ class Detector(Stage):
         """
 
 
-class Classifier(Stage):
+class Classifier(Stage[P]):
     """Decides online, frame by frame, whether a frame is info-less."""
 
     kind = "classifier"
 
     @abc.abstractmethod
     def classify(self, frame: FrameData, detections: Detections) -> ClassifierDecision:
-        """Classify ``frame`` given its detections. Called once per frame, in order.
+        """Classify ``frame`` given its detections. Called once per readable frame, in order.
 
-        Frame 0 carries the annotation and is always treated as informative by the engine,
-        whatever this returns; it is still called so that features can warm up.
+        The first frame (``frame.first``) carries the annotation and is informative whatever
+        this returns; it is still called so that features can warm up, and a classifier whose
+        later decisions depend on earlier ones should decide it informative.
         """
 
-    def feedback(self, t: int, infoless: bool) -> None:
-        """The engine's final decision for frame ``t`` (used for recursive features)."""
 
-
-class Tracker(Stage):
+class Tracker(Stage[P]):
     """Tracks the fixed set of targets inside a segment (between info-less intervals)."""
 
     kind = "tracker"
@@ -153,7 +200,7 @@ class Tracker(Stage):
         )
 
 
-class Predictor(Stage):
+class Predictor(Stage[P]):
     """Predicts where the targets are on frame ``b`` from their history up to ``a``."""
 
     kind = "predictor"
@@ -163,7 +210,7 @@ class Predictor(Stage):
         """Return one or more candidate predictions U (a gap matcher chooses among them)."""
 
 
-class GapMatcher(Stage):
+class GapMatcher(Stage[P]):
     """Re-links the targets to the detections on frame ``b`` after an info-less interval."""
 
     kind = "gap_matcher"
@@ -172,7 +219,7 @@ class GapMatcher(Stage):
     default_predictor: ClassVar[str] = "kalman"
 
     @property
-    def predictor(self) -> Predictor:
+    def predictor(self) -> Predictor[Any]:
         """The configured motion predictor."""
         predictor = self.nested_stages.get("predictor")
         if not isinstance(predictor, Predictor):
@@ -184,7 +231,26 @@ class GapMatcher(Stage):
         """Solve the gap: the position of every target on frame ``b``."""
 
 
-STAGE_BASES: dict[str, type[Stage]] = {
+@dataclass(frozen=True)
+class PipelineStages:
+    """One built instance of each pipeline stage kind, for one video run."""
+
+    detector: Detector[Any]
+    classifier: Classifier[Any]
+    tracker: Tracker[Any]
+    gap_matcher: GapMatcher[Any]
+
+    def by_kind(self) -> dict[str, Stage[Any]]:
+        """Kind -> stage, in :data:`STAGE_KINDS` order."""
+        return {kind: getattr(self, kind) for kind in STAGE_KINDS}
+
+    @property
+    def needs_pixels(self) -> bool:
+        """True when any stage (or a stage nested in one) reads pixels."""
+        return any(stage.needs_pixels for stage in self.by_kind().values())
+
+
+STAGE_BASES: dict[str, type[Stage[Any]]] = {
     "detector": Detector,
     "classifier": Classifier,
     "tracker": Tracker,

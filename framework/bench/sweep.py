@@ -197,7 +197,7 @@ def plan_sweep(
             f"{dataset}: several videos are named {', '.join(duplicates)}; expected unique names."
         )
     for entry in planned:
-        check_videos(entry.pipeline.build(registry), videos)
+        check_videos(entry.pipeline.build(), videos)
     if use_cache:
         cache_dir = Path(cache_dir).resolve() if cache_dir is not None else out_dir / CACHE_FOLDER
     else:

@@ -15,8 +15,6 @@ move less than 1.31 % of the width per frame, while the median info-less frame m
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
-
 import numpy as np
 from pydantic import Field, model_validator
 
@@ -81,16 +79,14 @@ def motion_score(motion: float, high: float, low: float) -> float:
     return float(min(max((motion - low) / (high - low), 0.0), 1.0))
 
 
-class FlowThresholdClassifier(Classifier):
+class FlowThresholdClassifier(Classifier[FlowThresholdParams]):
     """Info-less while the mean optical flow is high, with hysteresis (a baseline)."""
 
     name = "flow-threshold"
-    Params: ClassVar[type[StageParams]] = FlowThresholdParams
     uses_pixels = True
 
-    def __init__(self, params: StageParams | None = None, **nested: Any) -> None:
-        super().__init__(params, **nested)
-        assert isinstance(self.params, FlowThresholdParams)
+    def __init__(self, params: FlowThresholdParams | None = None) -> None:
+        super().__init__(params)
         self.meter = OpticalFlowMeter(
             self.params.flow, self.params.flow_width, self.params.dis_preset
         )
@@ -106,15 +102,12 @@ class FlowThresholdClassifier(Classifier):
         if frame.image is None:
             raise ValueError("the flow-threshold classifier needs frame pixels")
         params = self.params
-        assert isinstance(params, FlowThresholdParams)
         motion = 100.0 * self.meter.measure(frame.image) / params.flow_width
-        self.inside = hysteresis_step(motion, self.inside, params.high, params.low)
+        # The first frame is informative, so the hysteresis starts outside an interval.
+        inside = hysteresis_step(motion, self.inside, params.high, params.low)
+        self.inside = inside and not frame.first
         return ClassifierDecision(
             probability=motion_score(motion, params.high, params.low),
             infoless=self.inside,
             features=np.array([motion]),
         )
-
-    def feedback(self, t: int, infoless: bool) -> None:
-        """Follow the engine's final decision (frame 0 is always informative)."""
-        self.inside = infoless

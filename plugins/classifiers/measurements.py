@@ -227,8 +227,6 @@ def collect_measurements(
         cache_dir: folder of per-video NPZ caches, or None for no cache.
         log: receives one line per video.
     """
-    from pydantic import ValidationError
-
     from trackfw.dataset import load_video
     from trackfw.registry import load_registry
     from trackfw.video_io import iter_frames
@@ -237,12 +235,9 @@ def collect_measurements(
     registry = load_registry()
     try:
         detector = registry.build_stage("detector", detector_spec)
-    except KeyError as error:
-        raise UserError(str(error.args[0]) if error.args else str(error)) from None
-    except ValidationError as error:
-        first = error.errors()[0]
-        where = ".".join(str(part) for part in first["loc"])
-        raise UserError(f"--detector-param {where}: {first['msg']}.") from None
+    except UserError as error:
+        # The lines name detector.params.KEY, which the command line spells --detector-param KEY.
+        raise UserError(*(f"--detector-param: {line}" for line in error.lines)) from None
     if not isinstance(detector, Detector):
         raise UserError(f"{detector_spec['type']!r} is not a detector.")
     meter = OpticalFlowMeter(settings.flow, settings.flow_width, settings.dis_preset)

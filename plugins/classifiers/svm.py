@@ -7,8 +7,8 @@ none) the frame is info-less when the probability reaches ``threshold`` (0.5); a
 record hysteresis, re-anchoring of ``C_t``'s reference and a turn latch, which the stage then
 applies by default (each can be overridden by a parameter). It only labels frames: turning labels
 into intervals (§6.4) is the engine's job. The reference frame ``a`` of ``C_t`` follows the
-decisions: the classifier's own decision is used provisionally and the engine's final one, given
-through :meth:`SvmClassifier.feedback`, replaces it.
+decisions, which are the engine's: the first frame (``frame.first``) is informative, whatever the
+SVM says, as the engine has it.
 
 The shipped model (``models/infoless_svm.json``) was trained with ``trackfw train classifier
 --reference replay`` and the online rules chosen by cross-validation (``--select-rules``) on the
@@ -23,12 +23,10 @@ import logging
 from dataclasses import replace
 from importlib import resources
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
-import numpy as np
 from pydantic import Field, field_validator
 
-from trackfw.arrays import FloatArray
 from trackfw.errors import UserError
 from trackfw.records import ClassifierDecision, Detections, FrameData, VideoContext
 from trackfw.stages import Classifier, StageParams
@@ -227,22 +225,19 @@ def resolve_feature_settings(model: SvmModel, params: Any) -> dict[str, Any]:
     return settings
 
 
-class SvmClassifier(Classifier):
+class SvmClassifier(Classifier[SvmParams]):
     """Info-less frames from the 11-d motion/detection feature and an RBF SVM (paper §3.2)."""
 
     name = "svm"
-    Params: ClassVar[type[StageParams]] = SvmParams
     uses_pixels = True
 
     @classmethod
-    def resource_files(cls, params: StageParams) -> list[Path]:
+    def resource_files(cls, params: SvmParams) -> list[Path]:
         """The shipped model when no ``model`` is given."""
-        assert isinstance(params, SvmParams)
         return [] if params.model else [shipped_model_path()]
 
-    def __init__(self, params: StageParams | None = None, **nested: Any) -> None:
-        super().__init__(params, **nested)
-        assert isinstance(self.params, SvmParams)
+    def __init__(self, params: SvmParams | None = None) -> None:
+        super().__init__(params)
         self.model = load_classifier_model(self.params.model)
         settings = resolve_feature_settings(self.model, self.params)
         self.extractor = InfolessFeatureExtractor(
@@ -255,8 +250,6 @@ class SvmClassifier(Classifier):
             self.model, self.params, self.params.model or SHIPPED_MODEL
         )
         self.decider = OnlineDecider(self.rules, self.extractor.assembler)
-        #: The latest frame's feature; re-anchoring in feedback() looks at its motion history.
-        self._features: FloatArray = np.zeros(len(FEATURE_LAYOUT))
 
     def start(self, video: VideoContext) -> None:
         """Forget the previous video's frames, reference and interval state."""
@@ -267,15 +260,10 @@ class SvmClassifier(Classifier):
         """Probability and label of ``frame``; needs its pixels."""
         if frame.image is None:
             raise ValueError("the svm classifier needs frame pixels (uses_pixels is True)")
-        assert isinstance(self.params, SvmParams)
         features = self.extractor.update(frame.t, frame.image, detections.points)
         probability = float(self.model.probability(features)[0])
-        infoless = self.decider.decide(probability, features)
-        self._features = features
-        # Provisional: feedback() replaces it with the engine's final decision.
+        # The decider runs on the first frame too (its turn latch sees the motion), but the
+        # first frame is informative: it sets the reference of C_t.
+        infoless = self.decider.decide(probability, features) and not frame.first
         self.decider.settle(frame.t, infoless, features)
         return ClassifierDecision(probability=probability, infoless=infoless, features=features)
-
-    def feedback(self, t: int, infoless: bool) -> None:
-        """The engine's final decision for frame ``t``: it sets the reference of ``C_t``."""
-        self.decider.settle(t, infoless, self._features)

@@ -169,24 +169,20 @@ class EdgeBoxCnnParams(StageParams):
         )
 
 
-class EdgeBoxCnnDetector(Detector):
+class EdgeBoxCnnDetector(Detector[EdgeBoxCnnParams]):
     """EdgeBoxes (+ blob) proposals scored by a small CNN head classifier (the paper's detector)."""
 
     name = "edgebox-cnn"
-    Params = EdgeBoxCnnParams
     uses_pixels = True
 
     @classmethod
-    def resource_files(cls, params: StageParams) -> list[Path]:
+    def resource_files(cls, params: EdgeBoxCnnParams) -> list[Path]:
         """The shipped head classifier when no ``model`` is given."""
-        assert isinstance(params, EdgeBoxCnnParams)
         return [] if params.model else [shipped_model_path()]
 
     def __init__(self, params: EdgeBoxCnnParams | None = None) -> None:
         super().__init__(params)
-        assert isinstance(self.params, EdgeBoxCnnParams)
-        settings: EdgeBoxCnnParams = self.params
-        self.settings = settings
+        settings = self.params
         model_path = Path(settings.model) if settings.model else shipped_model_path()
         input_size = (settings.input_size, settings.input_size) if settings.input_size else None
         self.scorer = HeadScorer(
@@ -235,7 +231,7 @@ class EdgeBoxCnnDetector(Detector):
         """Detect heads on a ``(H, W, 3)`` uint8 BGR image."""
         started = time.perf_counter()
         pending = None
-        if self.settings.overlap_proposals:
+        if self.params.overlap_proposals:
             # OpenCV and onnxruntime release the GIL, so EdgeBoxes runs on a second core while
             # this thread finds and scores the blobs.
             if self._edge_boxes_thread is None:
@@ -266,9 +262,9 @@ class EdgeBoxCnnDetector(Detector):
             "proposed": len(boxes),
         }
         kept = non_maximum_suppression(
-            boxes, scores, self.settings.score_threshold, self.settings.nms_iou
+            boxes, scores, self.params.score_threshold, self.params.nms_iou
         )
-        kept = suppress_nested_centres(boxes, kept, self.settings.nms_centre_ratio)
+        kept = suppress_nested_centres(boxes, kept, self.params.nms_centre_ratio)
         return detections_from_boxes(boxes[kept], scores[kept], "centre")
 
     def detect(self, frame: FrameData) -> Detections:

@@ -42,17 +42,14 @@ class HogParams(StageParams):
     )
 
 
-class HogDetector(Detector):
+class HogDetector(Detector[HogParams]):
     """OpenCV HOG people detector; the head point is near the top of each body box."""
 
     name = "hog"
-    Params = HogParams
     uses_pixels = True
 
     def __init__(self, params: HogParams | None = None) -> None:
         super().__init__(params)
-        assert isinstance(self.params, HogParams)
-        self.settings: HogParams = self.params
         self.hog = cv2.HOGDescriptor()
         self.hog.setSVMDetector(
             np.asarray(cv2.HOGDescriptor.getDefaultPeopleDetector(), dtype=np.float32)
@@ -61,28 +58,28 @@ class HogDetector(Detector):
     def detect_image(self, image: np.ndarray) -> Detections:
         """Detect people on a ``(H, W, 3)`` uint8 BGR image; points are head points."""
         width = image.shape[1]
-        scale = self.settings.work_width / width if self.settings.work_width else 1.0
+        scale = self.params.work_width / width if self.params.work_width else 1.0
         resized = (
             image
             if scale == 1.0
             else cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_LINEAR)
         )
-        stride = self.settings.win_stride
+        stride = self.params.win_stride
         boxes, weights = self.hog.detectMultiScale(
             resized,
-            hitThreshold=self.settings.hit_threshold,
+            hitThreshold=self.params.hit_threshold,
             winStride=(stride, stride),
-            padding=(self.settings.padding, self.settings.padding),
-            scale=self.settings.scale,
-            groupThreshold=self.settings.group_threshold,
+            padding=(self.params.padding, self.params.padding),
+            scale=self.params.scale,
+            groupThreshold=self.params.group_threshold,
         )
         if len(boxes) == 0:
             return Detections.empty()
         boxes_array = np.asarray(boxes, dtype=np.float64).reshape(-1, 4) / scale
         scores = 1.0 / (1.0 + np.exp(-np.asarray(weights, dtype=np.float64).reshape(-1)))
-        keep = scores >= self.settings.score_threshold
+        keep = scores >= self.params.score_threshold
         return detections_from_boxes(
-            boxes_array[keep], scores[keep], "body", self.settings.head_offset
+            boxes_array[keep], scores[keep], "body", self.params.head_offset
         )
 
     def detect(self, frame: FrameData) -> Detections:

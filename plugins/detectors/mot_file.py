@@ -43,17 +43,14 @@ class MotFileParams(StageParams):
     )
 
 
-class MotFileDetector(Detector):
+class MotFileDetector(Detector[MotFileParams]):
     """Precomputed detections from a MOTChallenge det.txt file."""
 
     name = "mot-file"
-    Params = MotFileParams
     uses_pixels = False
 
     def __init__(self, params: MotFileParams | None = None) -> None:
         super().__init__(params)
-        assert isinstance(self.params, MotFileParams)
-        self.settings: MotFileParams = self.params
         self.table: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
 
     def resolve(self, video: VideoContext) -> Path:
@@ -61,7 +58,7 @@ class MotFileDetector(Detector):
         folder = Path(video.path)
         if folder.is_file():
             folder = folder.parent
-        text = self.settings.path.replace("{video}", str(folder)).replace("{name}", video.name)
+        text = self.params.path.replace("{video}", str(folder)).replace("{name}", video.name)
         path = Path(text).expanduser()
         return path if path.is_absolute() else folder / path
 
@@ -70,7 +67,7 @@ class MotFileDetector(Detector):
         path = self.resolve(video)
         if not path.is_file():
             raise UserError(
-                f"{path}: detections file not found (mot-file path {self.settings.path!r});"
+                f"{path}: detections file not found (mot-file path {self.params.path!r});"
                 " expected a MOTChallenge det.txt."
             )
         self.table = detections_by_frame(read_mot_detections(path))
@@ -78,10 +75,10 @@ class MotFileDetector(Detector):
     def detect(self, frame: FrameData) -> Detections:
         """The rows of frame ``frame.t`` above the score threshold."""
         boxes, raw = self.table.get(frame.t, (np.zeros((0, 4)), np.zeros(0)))
-        keep = raw >= self.settings.score_threshold
+        keep = raw >= self.params.score_threshold
         boxes, raw = boxes[keep], raw[keep]
-        if self.settings.score_transform == "sigmoid":
+        if self.params.score_transform == "sigmoid":
             scores = 1.0 / (1.0 + np.exp(-raw))
         else:
             scores = np.clip(raw, 0.0, 1.0)
-        return detections_from_boxes(boxes, scores, self.settings.point)
+        return detections_from_boxes(boxes, scores, self.params.point)

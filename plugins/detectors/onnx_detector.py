@@ -100,19 +100,15 @@ class OnnxDetectorParams(StageParams):
     )
 
 
-class OnnxDetector(Detector):
+class OnnxDetector(Detector[OnnxDetectorParams]):
     """A user-supplied ONNX detector (YOLO-style rows, boxes+scores tensors, or a score map)."""
 
     name = "onnx"
-    Params = OnnxDetectorParams
     uses_pixels = True
 
     def __init__(self, params: OnnxDetectorParams | None = None) -> None:
         super().__init__(params)
-        assert isinstance(self.params, OnnxDetectorParams)
-
-        settings: OnnxDetectorParams = self.params
-        self.settings = settings
+        settings = self.params
         if not settings.model:
             raise UserError("onnx detector: field 'model' is empty; expected an ONNX file path.")
         path = Path(settings.model).expanduser()
@@ -148,13 +144,13 @@ class OnnxDetector(Detector):
 
     # ------------------------------------------------------------------ input
     def _tensor(self, image: np.ndarray) -> NDArray[np.float32]:
-        pixels = image[..., ::-1] if self.settings.rgb else image
-        scaled = pixels.astype(np.float32) * np.float32(self.settings.pixel_scale)
-        normalised = (scaled - np.asarray(self.settings.mean, np.float32)) / np.asarray(
-            self.settings.std, np.float32
+        pixels = image[..., ::-1] if self.params.rgb else image
+        scaled = pixels.astype(np.float32) * np.float32(self.params.pixel_scale)
+        normalised = (scaled - np.asarray(self.params.mean, np.float32)) / np.asarray(
+            self.params.std, np.float32
         )
         tensor = normalised[None]
-        if self.settings.layout == "NCHW":
+        if self.params.layout == "NCHW":
             tensor = tensor.transpose(0, 3, 1, 2)
         return np.ascontiguousarray(tensor, dtype=np.float32)
 
@@ -162,7 +158,7 @@ class OnnxDetector(Detector):
         """Resize to the input; returns the image and (scale_x, scale_y, pad_x, pad_y)."""
         height, width = image.shape[:2]
         target_w, target_h = self.input_width, self.input_height
-        if self.settings.resize == "stretch":
+        if self.params.resize == "stretch":
             resized = cv2.resize(image, (target_w, target_h), interpolation=cv2.INTER_LINEAR)
             return resized, target_w / width, target_h / height, 0.0, 0.0
         scale = min(target_w / width, target_h / height)
@@ -175,53 +171,53 @@ class OnnxDetector(Detector):
 
     # ----------------------------------------------------------------- decode
     def _scores(self, values: FloatArray) -> FloatArray:
-        if self.settings.logits:
+        if self.params.logits:
             return np.asarray(1.0 / (1.0 + np.exp(-values)), dtype=np.float64)
         return values
 
     def _decode_boxes_scores(self, outputs: dict[str, np.ndarray]) -> tuple[FloatArray, FloatArray]:
-        boxes_name = self.settings.boxes_output or self.output_names[0]
-        scores_name = self.settings.scores_output or self.output_names[1]
+        boxes_name = self.params.boxes_output or self.output_names[0]
+        scores_name = self.params.scores_output or self.output_names[1]
         boxes = np.asarray(outputs[boxes_name], dtype=np.float64).reshape(-1, 4)
         scores = np.asarray(outputs[scores_name], dtype=np.float64)
         scores = scores.reshape(len(boxes), -1) if scores.size else scores.reshape(0, 1)
-        column = min(self.settings.class_index, scores.shape[1] - 1) if scores.shape[1] else 0
-        return _to_xywh(boxes, self.settings.box_format), self._scores(scores[:, column])
+        column = min(self.params.class_index, scores.shape[1] - 1) if scores.shape[1] else 0
+        return _to_xywh(boxes, self.params.box_format), self._scores(scores[:, column])
 
     def _decode_yolo(self, outputs: dict[str, np.ndarray]) -> tuple[FloatArray, FloatArray]:
         rows = np.asarray(outputs[self.output_names[0]], dtype=np.float64)
         rows = rows.reshape(rows.shape[-2], rows.shape[-1]) if rows.ndim == 3 else rows
-        first = 5 if self.settings.objectness else 4
-        transposed = self.settings.transposed
+        first = 5 if self.params.objectness else 4
+        transposed = self.params.transposed
         if transposed is None:
             # YOLOv8 exports (4 + C, N) with N (thousands of anchors) much larger than 4 + C.
             transposed = rows.shape[1] > rows.shape[0] and rows.shape[0] >= first
         if transposed:
             rows = rows.T
-        if rows.shape[1] <= first + self.settings.class_index:
+        if rows.shape[1] <= first + self.params.class_index:
             raise UserError(
                 f"{self.path}: output rows have {rows.shape[1]} columns; expected"
-                f" {first} + classes (class_index {self.settings.class_index})."
+                f" {first} + classes (class_index {self.params.class_index})."
             )
-        class_scores = self._scores(rows[:, first + self.settings.class_index])
-        if self.settings.objectness:
+        class_scores = self._scores(rows[:, first + self.params.class_index])
+        if self.params.objectness:
             class_scores = class_scores * self._scores(rows[:, 4])
         return _to_xywh(rows[:, :4], "cxcywh"), class_scores
 
     def _score_map(self, image: NDArray[np.uint8]) -> tuple[FloatArray, FloatArray]:
         all_boxes: list[FloatArray] = []
         all_scores: list[FloatArray] = []
-        grow = context_fraction(self.settings.context)
-        head_side = self.settings.window / (1.0 + 2.0 * grow)
-        for scale in self.settings.scales:
+        grow = context_fraction(self.params.context)
+        head_side = self.params.window / (1.0 + 2.0 * grow)
+        for scale in self.params.scales:
             resized = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
             (logit_map, *_rest) = self.session.run(
                 [self.output_names[0]], {self.input_name: self._tensor(resized)}
             )
             grid = np.asarray(logit_map, dtype=np.float64).reshape(logit_map.shape[-2:])
-            rows, columns = np.nonzero(self._scores(grid) >= self.settings.score_threshold)
-            centre_x = (columns * self.settings.stride + self.settings.window / 2) / scale
-            centre_y = (rows * self.settings.stride + self.settings.window / 2) / scale
+            rows, columns = np.nonzero(self._scores(grid) >= self.params.score_threshold)
+            centre_x = (columns * self.params.stride + self.params.window / 2) / scale
+            centre_y = (rows * self.params.stride + self.params.window / 2) / scale
             side = np.full(len(rows), head_side / scale)
             all_boxes.append(
                 np.stack([centre_x - side / 2, centre_y - side / 2, side, side], axis=1)
@@ -231,17 +227,17 @@ class OnnxDetector(Detector):
 
     def detect_image(self, image: NDArray[np.uint8]) -> Detections:
         """Detect heads on a ``(H, W, 3)`` uint8 BGR image."""
-        if self.settings.decoding == "score_map":
+        if self.params.decoding == "score_map":
             boxes, scores = self._score_map(image)
         else:
             fitted, scale_x, scale_y, pad_x, pad_y = self._fit(image)
             values = self.session.run(self.output_names, {self.input_name: self._tensor(fitted)})
             outputs = dict(zip(self.output_names, values, strict=True))
-            if self.settings.decoding == "yolo":
+            if self.params.decoding == "yolo":
                 boxes, scores = self._decode_yolo(outputs)
             else:
                 boxes, scores = self._decode_boxes_scores(outputs)
-            if self.settings.normalised_boxes:
+            if self.params.normalised_boxes:
                 boxes = boxes * np.array(
                     [self.input_width, self.input_height, self.input_width, self.input_height]
                 )
@@ -249,9 +245,9 @@ class OnnxDetector(Detector):
                 [scale_x, scale_y, scale_x, scale_y]
             )
         kept = non_maximum_suppression(
-            boxes, scores, self.settings.score_threshold, self.settings.nms_iou
+            boxes, scores, self.params.score_threshold, self.params.nms_iou
         )
-        return detections_from_boxes(boxes[kept], np.clip(scores[kept], 0, 1), self.settings.point)
+        return detections_from_boxes(boxes[kept], np.clip(scores[kept], 0, 1), self.params.point)
 
     def detect(self, frame: FrameData) -> Detections:
         """Detect heads on ``frame`` (its image must be decoded)."""

@@ -44,17 +44,15 @@ class OracleDetectorParams(StageParams):
     )
 
 
-class OracleDetector(Detector):
+class OracleDetector(Detector[OracleDetectorParams]):
     """Ground-truth head points, optionally with misses, jitter and false positives."""
 
     name = "oracle"
-    Params = OracleDetectorParams
     uses_pixels = False
     needs_ground_truth = True
 
     def start(self, video: VideoContext) -> None:
         params = self.params
-        assert isinstance(params, OracleDetectorParams)
         self.video = video
         self.random = np.random.default_rng([params.seed, zlib.crc32(video.name.encode())])
         truth = video.ground_truth
@@ -73,7 +71,6 @@ class OracleDetector(Detector):
 
     def detect(self, frame: FrameData) -> Detections:
         params = self.params
-        assert isinstance(params, OracleDetectorParams)
         rows = self.per_frame.get(frame.t, np.zeros((0, 3)))
         if params.miss_rate > 0 and len(rows):
             rows = rows[self.random.random(len(rows)) >= params.miss_rate]

@@ -31,15 +31,13 @@ class AssignmentParams(StageParams):
     )
 
 
-class AssignmentGapMatcher(GapMatcher):
+class AssignmentGapMatcher(GapMatcher[AssignmentParams]):
     """Assigns detections on frame b to the predicted target positions."""
 
     name = "assignment"
-    Params = AssignmentParams
 
     def _solve(self, prediction: Prediction, problem: GapProblem) -> tuple[GapSolution, float]:
         params = self.params
-        assert isinstance(params, AssignmentParams)
         detections = problem.detections
         positions = np.array(prediction.positions, dtype=np.float64).reshape(-1, 2)
         matched = np.full(len(positions), NO_MATCH, dtype=np.int64)

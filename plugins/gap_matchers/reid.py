@@ -35,16 +35,14 @@ class ReidParams(StageParams):
     )
 
 
-class ReidGapMatcher(GapMatcher):
+class ReidGapMatcher(GapMatcher[ReidParams]):
     """Hungarian assignment on LOMO or GOG descriptor distances between frames a and b."""
 
     name = "reid"
-    Params = ReidParams
     uses_pixels = True
 
     def _descriptors(self, image: np.ndarray, points: FloatArray) -> FloatArray:
         params = self.params
-        assert isinstance(params, ReidParams)
         crops = reid_crops(image, points, params.crop)
         if params.descriptor == "gog":
             return gog_descriptors(crops)
@@ -52,7 +50,6 @@ class ReidGapMatcher(GapMatcher):
 
     def match(self, problem: GapProblem) -> GapSolution:
         params = self.params
-        assert isinstance(params, ReidParams)
         if problem.frame_a is None or problem.frame_b is None:
             raise ValueError("the reid gap matcher needs the pixels of frames a and b")
         prediction = self.predictor.predict(problem)[0]

@@ -34,15 +34,13 @@ class TpsRpmGapParams(StageParams):
     )
 
 
-class TpsRpmGapMatcher(GapMatcher):
+class TpsRpmGapMatcher(GapMatcher[TpsRpmGapParams]):
     """TPS-RPM registration of the predicted pattern onto all detections at frame b (no windows)."""
 
     name = "tps-rpm"
-    Params = TpsRpmGapParams
 
     def match(self, problem: GapProblem) -> GapSolution:
         params = self.params
-        assert isinstance(params, TpsRpmGapParams)
         detections = problem.detections
         best: GapSolution | None = None
         costs: dict[str, float] = {}

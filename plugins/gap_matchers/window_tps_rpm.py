@@ -107,25 +107,19 @@ def appearance_matrix(problem: GapProblem, params: WindowTpsRpmParams) -> FloatA
     return appearance_distance_matrix(targets, detections)
 
 
-class WindowTpsRpmGapMatcher(GapMatcher):
+class WindowTpsRpmGapMatcher(GapMatcher[WindowTpsRpmParams]):
     """AR prediction + window-based TPS-RPM matching of the group's spatial pattern (the paper's method)."""
 
     name = "window-tps-rpm"
-    Params = WindowTpsRpmParams
     default_predictor = "ar"
-
-    @property
-    def settings(self) -> WindowTpsRpmParams:
-        assert isinstance(self.params, WindowTpsRpmParams)
-        return self.params
 
     @property
     def needs_pixels(self) -> bool:
         # Pixels serve only the appearance term.
-        return self.settings.lambda2 > 0 or super().needs_pixels
+        return self.params.lambda2 > 0 or super().needs_pixels
 
     def match(self, problem: GapProblem) -> GapSolution:
-        params = self.settings
+        params = self.params
         candidates = list(self.predictor.predict(problem))
         detections = problem.detections
         appearance = (

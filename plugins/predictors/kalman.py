@@ -15,14 +15,15 @@ from trackfw.stages import Predictor, StageParams
 from trackfw_plugins.maths.kalman import observation_matrix, transition_matrix
 
 
-class KalmanPredictor(Predictor):
+class KalmanPredictorParams(StageParams):
+    """The Kalman predictor has no parameters: F and H are the paper's (§1.1)."""
+
+
+class KalmanPredictor(Predictor[KalmanPredictorParams]):
     """Kalman prediction without correction across the interval ("TR" in the paper)."""
 
     name = "kalman"
     uses_pixels = False
-
-    class Params(StageParams):
-        """The Kalman predictor has no parameters: F and H are the paper's (§1.1)."""
 
     def predict(self, problem: GapProblem) -> Sequence[Prediction]:
         """Extrapolate every target's state at a over ``problem.horizon`` frames.

@@ -51,14 +51,13 @@ class KalmanTrackerParams(StageParams):
     )
 
 
-class KalmanTracker(Tracker):
+class KalmanTracker(Tracker[KalmanTrackerParams]):
     """Constant-velocity Kalman filters with Hungarian or nearest-neighbour association."""
 
     name = "kalman"
-    Params = KalmanTrackerParams
 
     def start(self, video: VideoContext) -> None:
-        params = self.settings
+        params = self.params
         self.gate = (
             None
             if params.gate_px_at_1080 is None
@@ -68,24 +67,19 @@ class KalmanTracker(Tracker):
         self.target_ids = np.zeros(0, dtype=np.int64)
         self.matched = np.zeros(0, dtype=np.int64)
 
-    @property
-    def settings(self) -> KalmanTrackerParams:
-        assert isinstance(self.params, KalmanTrackerParams)
-        return self.params
-
     def initialise(self, t: int, target_ids: IntArray, positions: FloatArray) -> None:
-        params = self.settings
+        params = self.params
         self.target_ids = np.asarray(target_ids, dtype=np.int64)
         self.bank = KalmanBank.start(positions, params.P0, params.Q, params.R)
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
 
     def associate(self, predicted: FloatArray, detections: Detections) -> IntArray:
         """Row of ``detections`` for each predicted target, ``-1`` when none (gated)."""
-        if self.settings.association == "tps-rpm":
-            rows, _, _ = match_points(predicted, detections.points, self.settings.rpm)
+        if self.params.association == "tps-rpm":
+            rows, _, _ = match_points(predicted, detections.points, self.params.rpm)
             return rows
         cost = distance_matrix(predicted, detections.points)
-        if self.settings.association == "nearest":
+        if self.params.association == "nearest":
             return greedy_nearest(cost, self.gate)
         return hungarian(cost, self.gate)
 
@@ -100,7 +94,7 @@ class KalmanTracker(Tracker):
         self.matched[targets] = detections.index[rows[targets]]
 
     def reinitialise(self, t: int, positions: FloatArray, matched_detection: IntArray) -> None:
-        params = self.settings
+        params = self.params
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         if params.reinit_at_b:
             # The old velocity belongs to the pre-interval camera pose (ALGORITHMS.md 1.5).

@@ -79,8 +79,17 @@ MALFORMED = [
     ),
     (
         "nested-param",
-        PIPELINE.replace("predictor: {type: kalman}", "predictor: {type: ar, orders: [0]}"),
-        ["stages.gap_matcher.params.predictor.orders"],
+        PIPELINE.replace(
+            "predictor: {type: kalman}", "predictor: {type: ar, params: {orders: [0]}}"
+        ),
+        ["stages.gap_matcher.params.predictor.params.orders"],
+    ),
+    (
+        # Before issue 15 a predictor's parameters sat beside its type; the message says where
+        # they go now.
+        "nested-old-shape",
+        PIPELINE.replace("predictor: {type: kalman}", "predictor: {type: ar, orders: [1]}"),
+        ["stages.gap_matcher.params.predictor.orders: unknown key", "go under 'params'"],
     ),
 ]
 
@@ -152,8 +161,8 @@ def test_set_overrides_values_and_reports_bad_paths(pipeline_file: Callable[...,
         registry,
         ["stages.tracker.params.association=nearest", "stages.detector.params.jitter_px=2.5"],
     )
-    assert pipeline.stages["tracker"]["params"]["association"] == "nearest"
-    assert pipeline.stages["detector"]["params"]["jitter_px"] == 2.5
+    assert pipeline.stages["tracker"].as_data()["params"]["association"] == "nearest"
+    assert pipeline.stages["detector"].as_data()["params"]["jitter_px"] == 2.5
     with pytest.raises(UserError, match="expected PATH=VALUE"):
         load_pipeline(pipeline_file(), registry, ["stages.tracker.params.association"])
     with pytest.raises(UserError, match=r"stages\.tracker\.params\.gate_px_at_1080"):
@@ -164,8 +173,11 @@ def test_params_are_fully_defaulted_and_hash_is_stable(pipeline_file: Callable[.
     registry = load_registry()
     first = load_pipeline(pipeline_file(), registry)
     second = load_pipeline(pipeline_file(), registry)
-    assert first.stages["tracker"]["params"]["P0"] == 1000.0
-    assert first.stages["gap_matcher"]["params"]["predictor"] == {"type": "kalman"}
+    assert first.stages["tracker"].as_data()["params"]["P0"] == 1000.0
+    assert first.stages["gap_matcher"].as_data()["params"]["predictor"] == {
+        "type": "kalman",
+        "params": {},
+    }
     assert first.content_hash == second.content_hash
     changed = load_pipeline(pipeline_file(), registry, ["stages.tracker.params.Q=0.01"])
     assert changed.content_hash != first.content_hash

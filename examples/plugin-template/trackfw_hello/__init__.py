@@ -19,18 +19,16 @@ class CentreParams(StageParams):
     count: int = Field(1, ge=0, description="how many detections to put at the image centre")
 
 
-class CentreDetector(Detector):
+class CentreDetector(Detector[CentreParams]):
     """Detects ``count`` heads at the image centre (a toy to copy from)."""
 
     name = "centre"
-    Params = CentreParams
     uses_pixels = False
 
     def detect(self, frame: FrameData) -> Detections:
-        params = self.params
-        assert isinstance(params, CentreParams)
+        # self.params is the validated CentreParams (the type argument of Detector).
         video = frame.video
-        points = np.tile([video.width / 2, video.height / 2], (params.count, 1))
+        points = np.tile([video.width / 2, video.height / 2], (self.params.count, 1))
         return Detections.from_points(points)
 
 

@@ -190,7 +190,7 @@ def test_per_pipeline_overrides_apply_to_the_named_pipeline_only(
         ["proposed-oracle:stages.gap_matcher.params.lambda2=0", "engine.box_size=60"],
     )
     configs = {entry.pipeline.name: entry.pipeline for entry in plan.pipelines}
-    assert configs["proposed-oracle"].stages["gap_matcher"]["params"]["lambda2"] == 0
+    assert configs["proposed-oracle"].stages["gap_matcher"].params.lambda2 == 0
     assert all(pipeline.engine.box_size == 60 for pipeline in configs.values())
     assert len(plan.jobs) == 3 and not (tmp_path / "out").exists()
 

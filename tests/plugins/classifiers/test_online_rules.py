@@ -257,9 +257,9 @@ def test_stage_and_replay_agree_under_the_rules(
     rows, decisions = [], []
     points = np.array([[200.0 + 40 * i, 150.0 + 7 * (i % 2)] for i in range(6)])
     for t, image in enumerate(make_frames(shifts)):
-        decision = stage.classify(FrameData(t, image, video), Detections.from_points(points))
-        infoless = decision.infoless and t > 0
-        stage.feedback(t, infoless)
+        frame = FrameData(t, image, video, first=t == 0)
+        decision = stage.classify(frame, Detections.from_points(points))
+        infoless = decision.infoless
         decisions.append(infoless)
         rows.append(stage.extractor.last_measurements)
     table = np.asarray(rows)

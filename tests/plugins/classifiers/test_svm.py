@@ -33,9 +33,8 @@ def run(
     decisions, probabilities, measurements = [], [], []
     for t, image in enumerate(frames):
         detections = group(1, 0.0) if t in fast else group(6, 120.0)
-        decision = classifier.classify(FrameData(t, image, VIDEO), detections)
-        infoless = decision.infoless and t > 0  # the engine's rule for frame 0
-        classifier.feedback(t, infoless)
+        decision = classifier.classify(FrameData(t, image, VIDEO, first=t == 0), detections)
+        infoless = decision.infoless
         assert decision.features is not None and decision.features.shape == (11,)
         decisions.append(infoless)
         probabilities.append(decision.probability)
