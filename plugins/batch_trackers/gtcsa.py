@@ -46,14 +46,9 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
+from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw.stages import StageParams
-from trackfw_plugins.batch_trackers.tracks import (
-    BoolArray,
-    FloatArray,
-    IntArray,
-    Tracks,
-    VideoDetections,
-)
+from trackfw_plugins.batch_trackers.tracks import Tracks, VideoDetections
 from trackfw_plugins.maths.assignment import distance_matrix, hungarian
 from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R, KalmanBank
 from trackfw_plugins.maths.tps_rpm import TpsRpmResult, tps_rpm
