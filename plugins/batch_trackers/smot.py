@@ -143,7 +143,11 @@ def hstln(
 
 
 def trajectory_rank(
-    u: FloatArray, omega: BoolArray, params: SmotParams, min_rank: int = 1, max_rank: int | None = None
+    u: FloatArray,
+    omega: BoolArray,
+    params: SmotParams,
+    min_rank: int = 1,
+    max_rank: int | None = None,
 ) -> int:
     """Smallest order whose HSTLN fit passes the ``eta_max`` test; ``u`` is ``(D, N)``."""
     dims, count = u.shape
@@ -266,7 +270,11 @@ def similarity_matrix(pieces: list[Tracklet], cache: _RankCache) -> FloatArray:
         return similarity
     max_gap = float(np.mean(lengths)) / 2.0
     max_slope = max(
-        (float(np.linalg.norm(np.diff(p.points, axis=0), axis=1).max()) for p in pieces if len(p.points) > 1),
+        (
+            float(np.linalg.norm(np.diff(p.points, axis=0), axis=1).max())
+            for p in pieces
+            if len(p.points) > 1
+        ),
         default=0.0,
     )
     for i, first in enumerate(pieces):

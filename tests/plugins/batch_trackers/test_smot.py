@@ -10,8 +10,8 @@ from trackfw_plugins.batch_trackers.smot import (
     generalised_assignment,
     initial_tracklets,
     join,
-    trajectory_rank,
     track_smot,
+    trajectory_rank,
 )
 from trackfw_plugins.batch_trackers.tracks import VideoDetections
 
@@ -20,7 +20,9 @@ def _demo(noise: float = 0.2, seed: int = 0) -> tuple[VideoDetections, np.ndarra
     """The authors' demo: two targets on frames 1-20 and 25-35 (a 4-frame gap), shuffled."""
     random = np.random.default_rng(seed)
     t = np.arange(1, 36, dtype=float)
-    paths = np.stack([np.column_stack([5 * t + 33, 2 * t + 20]), np.column_stack([9 * t + 2, 4 * t - 4])], axis=1)
+    paths = np.stack(
+        [np.column_stack([5 * t + 33, 2 * t + 20]), np.column_stack([9 * t + 2, 4 * t - 4])], axis=1
+    )
     frames, points = [], []
     for index in range(35):
         if 20 <= index <= 23:  # frames 21-24 of the demo, 0-based here
@@ -82,7 +84,9 @@ def test_assignment_links_only_above_the_slack() -> None:
 
 def test_ambiguous_links_do_not_form_tracklets() -> None:
     # Two detections 4 px and 8 px from a frame-0 detection: the ratio test (8 < 3 * 4) fails.
-    points = np.array([[100.0, 100.0], [104.0, 100.0], [108.0, 100.0], [300.0, 300.0], [301.0, 300.0]])
+    points = np.array(
+        [[100.0, 100.0], [104.0, 100.0], [108.0, 100.0], [300.0, 300.0], [301.0, 300.0]]
+    )
     detections = VideoDetections.from_points(np.array([0, 1, 1, 0, 1]), points, 2)
     tracklets = initial_tracklets(detections, 3.0)
     lengths = sorted(len(piece.points) for piece in tracklets)
