@@ -21,6 +21,8 @@ Choices that differ from the reference implementations, and why: the filter stat
 box-aspect state adds nothing); the reference's duplicate-track removal between tracked and lost
 sets is left out; a confirmed track reports its birth detection too. Only observed positions are
 reported (ByteTrack never fills gaps).
+
+See ``docs/algorithms/batch-trackers.md#bytetrack``.
 """
 
 from __future__ import annotations

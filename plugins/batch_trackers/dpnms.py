@@ -3,7 +3,7 @@
 Pirsiavash, Ramanan & Fowlkes, "Globally-optimal greedy algorithms for tracking a variable number
 of objects", CVPR 2011, in the behaviour of the authors' released DP code (the "DP_NMS" row of
 MOTChallenge and of Table 1 of Yu et al. 2018). Written fresh from the description in
-``docs/batch-trackers.md``:
+``docs/algorithms/batch-trackers.md#dpnms``:
 
 * every detection is a node with cost ``c_i = betta - score_i``; a track costs
   ``c_en + sum(c_i) + (len - 1) * c_ij + c_ex``;

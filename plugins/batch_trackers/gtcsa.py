@@ -39,6 +39,8 @@ Each step runs once per frame (the paper iterates its refinements "until stable"
 frame between two matches is reported with ``observed = False``; coasting after the last match
 is not reported. The video is processed as continuous: an info-less interval is one more
 ``m -> n`` step, which is the case the paper says the method does not handle well.
+
+See ``docs/algorithms/batch-trackers.md#gtcsa-like``.
 """
 
 from __future__ import annotations

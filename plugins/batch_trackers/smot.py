@@ -1,7 +1,8 @@
 """SMOT: tracklets stitched by Hankel-rank dynamics similarity (Dicle, Camps & Sznaier, ICCV 2013).
 
 "The way they move: tracking multiple targets with similar appearance", the SMOT row of Table 1
-of Yu et al. 2018. Written fresh from the method's description in ``docs/batch-trackers.md``:
+of Yu et al. 2018. Written fresh from the method's description in
+``docs/algorithms/batch-trackers.md#smot``:
 
 1. *Tracklets*: detection ``i`` at ``t`` links to its nearest detection at ``t + 1`` when the
    second-nearest is more than ``ratio`` times farther (with one detection at ``t + 1`` the last
