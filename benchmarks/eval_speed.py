@@ -17,14 +17,20 @@ from pathlib import Path
 
 import numpy as np
 
-from trackfw.dataset import write_heads, write_intervals, write_meta, write_targets
+from trackfw.dataset import write_meta
+from trackfw.formats.annotations import (
+    GT_FILE,
+    HEADS_FILE,
+    INTERVALS_FILE,
+    write_heads,
+    write_intervals,
+    write_targets,
+)
+from trackfw.formats.run import FRAMES_FILE, GAPS_FILE, SUMMARY_FILE, TRACKS_FILE, frames_header
 from trackfw.records import Interval
 from trackfw_plugins.evaluation.report import EvalSettings, evaluate_dataset, write_reports
 
-FRAMES_HEADER = (
-    "frame,status,infoless_probability,infoless,n_detections,detections,"
-    "ms_detector,ms_classifier,ms_tracker,ms_gap_matcher"
-)
+FRAMES_HEADER = ",".join(frames_header())
 
 
 def write_synthetic(
@@ -58,10 +64,10 @@ def write_synthetic(
             for t in range(n_frames)
             if not infoless[t]
         }
-        write_targets(video / "gt.csv", targets)
-        write_intervals(video / "intervals.csv", intervals)
+        write_targets(video / GT_FILE, targets)
+        write_intervals(video / INTERVALS_FILE, intervals)
         write_heads(
-            video / "heads.csv",
+            video / HEADS_FILE,
             [(t, k, x, y, 80.0) for t, points in targets.items() for k, (x, y) in points.items()],
         )
         # Tracks: noisy copies, a swap after the first interval, a false positive now and then.
@@ -87,10 +93,10 @@ def write_synthetic(
             frame_rows.append(
                 f"{t + 1},ok,{0.8 if label else 0.2},{label},{n_targets},{detections},5,1,1,0"
             )
-        (run / "tracks.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
-        (run / "frames.csv").write_text("\n".join(frame_rows) + "\n", encoding="utf-8")
-        (run / "summary.json").write_text("{}\n", encoding="utf-8")
-        (run / "gaps.json").write_text("[]\n", encoding="utf-8")
+        (run / TRACKS_FILE).write_text("\n".join(lines) + "\n", encoding="utf-8")
+        (run / FRAMES_FILE).write_text("\n".join(frame_rows) + "\n", encoding="utf-8")
+        (run / SUMMARY_FILE).write_text("{}\n", encoding="utf-8")
+        (run / GAPS_FILE).write_text("[]\n", encoding="utf-8")
     return dataset, runs
 
 

@@ -22,6 +22,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from trackfw.formats.run import SUMMARY_FILE
 from trackfw.stages import STAGE_KINDS
 
 
@@ -61,7 +62,7 @@ def main() -> None:
             for override in arguments.set:
                 command += ["--set", override]
             subprocess.run(command, check=True)
-            summaries = list(out.rglob("summary.json"))
+            summaries = list(out.rglob(SUMMARY_FILE))
             if len(summaries) != 1:
                 raise SystemExit(f"{out}: expected one summary.json, found {len(summaries)}")
             summary = json.loads(summaries[0].read_text())

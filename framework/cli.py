@@ -76,7 +76,7 @@ def run_command(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
 ) -> None:
     """Track the targets through a video or every video of a dataset."""
-    from trackfw.outputs import unread_warning
+    from trackfw.formats.run import unread_warning
     from trackfw.runner import prepare_run, run_prepared
 
     registry = get_registry()

@@ -14,7 +14,7 @@ from typing import Any
 from trackfw.dataset import list_videos, load_video
 from trackfw.engine import Engine, VideoRun, check_videos
 from trackfw.errors import UserError
-from trackfw.outputs import write_run
+from trackfw.formats.run import write_run
 from trackfw.pipeline import Pipeline, load_pipeline
 from trackfw.records import VideoContext
 from trackfw.registry import Registry, unknown_name_message

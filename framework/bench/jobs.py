@@ -24,11 +24,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from trackfw.atomic import write_json
+from trackfw.formats.run import SUMMARY_FILE
 
 if TYPE_CHECKING:
     from trackfw.registry import Registry
 
-SUMMARY_FILE = "summary.json"
 #: Per-run record of the benchmark (cache use, replayed stage time), written before summary.json.
 BENCH_FILE = "bench.json"
 #: Environment that keeps numeric libraries to one thread per worker process.
@@ -246,7 +246,7 @@ def _run(job: Job, registry: Registry, progress: Callable[[int], None]) -> str:
     from trackfw.dataset import load_video
     from trackfw.engine import Engine
     from trackfw.errors import UserError
-    from trackfw.outputs import write_run
+    from trackfw.formats.run import write_run
     from trackfw.pipeline import validate_pipeline
     from trackfw.stage_cache import CACHED_KINDS, StageCache
 

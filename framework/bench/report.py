@@ -24,9 +24,10 @@ from pathlib import Path
 from typing import Any
 
 from trackfw.atomic import atomic_open, write_text
-from trackfw.bench.jobs import BENCH_FILE, SUMMARY_FILE, is_done
+from trackfw.bench.jobs import BENCH_FILE, is_done
 from trackfw.bench.sweep import SweepPlan
 from trackfw.errors import UserError
+from trackfw.formats.run import SUMMARY_FILE, read_run
 from trackfw.stages import STAGE_KINDS
 
 TABLE_MARKDOWN = "table.md"
@@ -118,7 +119,6 @@ def build_table(plan: SweepPlan, distance_px: float = 40.0) -> list[TableRow]:
     Also writes eval.csv and eval.json into each pipeline's runs folder.
     """
     evaluation = _evaluation_module()
-    from trackfw_plugins.evaluation.runs import read_run
 
     settings = evaluation.EvalSettings(distance_px=distance_px)
     names = [entry.pipeline.name for entry in plan.pipelines]

@@ -1,5 +1,8 @@
 """Every file trackfw reads or writes, each kind in one place with one reader and one writer.
 
+* :mod:`trackfw.formats.run`: a run's files (tracks.txt, frames.csv, gaps.json, summary.json),
+  their names and the frames.csv columns;
+* :mod:`trackfw.formats.annotations`: a video's annotations (gt.csv, heads.csv, intervals.csv);
 * :mod:`trackfw.formats.mot`: MOTChallenge text (gt.txt, det.txt, tracks.txt; MOT15 10-column
   and MOT16/17 9-column layouts);
 * :mod:`trackfw.formats.head_point`: the head point (and size) of a body box, one rule;

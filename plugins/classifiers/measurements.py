@@ -19,6 +19,7 @@ import numpy as np
 from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw.atomic import atomic_open
 from trackfw.errors import UserError
+from trackfw.formats.annotations import INTERVALS_FILE
 from trackfw.records import FrameData, VideoContext
 from trackfw.stages import Detector
 from trackfw_plugins.classifiers.infoless_features import (
@@ -80,7 +81,7 @@ class VideoMeasurements:
 def ground_truth_labels(video: VideoContext) -> BoolArray:
     """``(n_frames,)`` True inside a ground-truth interval; a UserError when there is none."""
     truth = video.ground_truth
-    if truth is None or not (Path(video.path) / "intervals.csv").is_file():
+    if truth is None or not (Path(video.path) / INTERVALS_FILE).is_file():
         raise UserError(
             f"{video.path}: no intervals.csv; training the classifier needs the ground-truth"
             " info-less intervals."

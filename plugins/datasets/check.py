@@ -26,21 +26,23 @@ from typing import Annotated, Any
 import typer
 
 from trackfw.dataset import (
-    GT_FILE,
-    HEADS_FILE,
     IMAGE_SUFFIXES,
-    INTERVAL_KINDS,
-    INTERVALS_FILE,
     META_FILE,
     POSES_FILE,
     frame_source_path,
     list_videos,
-    read_heads,
-    read_intervals,
     read_meta,
-    read_targets,
 )
 from trackfw.errors import UserError
+from trackfw.formats.annotations import (
+    GT_FILE,
+    HEADS_FILE,
+    INTERVAL_KINDS,
+    INTERVALS_FILE,
+    read_heads,
+    read_intervals,
+    read_targets,
+)
 
 POSE_COLUMNS = ("frame", "pan", "tilt", "roll", "scale", "tx", "ty")
 #: Tolerance (pixels) for a gt point on the image border.

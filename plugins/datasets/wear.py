@@ -39,21 +39,17 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from trackfw.atomic import atomic_open, write_text
-from trackfw.dataset import (
-    GT_FILE,
-    HEADS_FILE,
-    IMAGE_FOLDER,
-    INTERVALS_FILE,
-    META_FILE,
-    POSES_FILE,
-    VIDEO_FILE,
-    write_heads,
-    write_intervals,
-    write_meta,
-    write_targets,
-)
+from trackfw.dataset import IMAGE_FOLDER, META_FILE, POSES_FILE, VIDEO_FILE, write_meta
 from trackfw.errors import UserError
 from trackfw.formats import HEAD_FRACTION, HEAD_SIZE_FRACTION, body_head_points, body_heads
+from trackfw.formats.annotations import (
+    GT_FILE,
+    HEADS_FILE,
+    INTERVALS_FILE,
+    write_heads,
+    write_intervals,
+    write_targets,
+)
 from trackfw.records import Interval
 from trackfw_plugins.datasets.mot import MotSequence, load_mot_sequence, read_frame
 from trackfw_plugins.datasets.wear_camera import (

@@ -29,7 +29,7 @@ import numpy as np
 from trackfw.atomic import write_json, write_text
 from trackfw.dataset import list_videos, load_video
 from trackfw.errors import UserError
-from trackfw.outputs import check_complete_run
+from trackfw.formats.run import RunRecord, check_complete_run, read_run
 from trackfw.records import VideoContext
 from trackfw_plugins.evaluation.clear_mot import (
     ClearMotCounts,
@@ -43,7 +43,6 @@ from trackfw_plugins.evaluation.detection import DetectionCounts, frame_detectio
 from trackfw_plugins.evaluation.hota import HotaCounts, hota_counts
 from trackfw_plugins.evaluation.identity import IdentityCounts, identity_counts
 from trackfw_plugins.evaluation.infoless import InfolessCounts, infoless_counts, infoless_truth
-from trackfw_plugins.evaluation.runs import RunRecord, read_run
 
 EVAL_CSV = "eval.csv"
 EVAL_JSON = "eval.json"

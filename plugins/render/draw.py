@@ -7,20 +7,14 @@ summary.json; DESIGN.md section 6). Frames on disk are 1-based; in memory 0-base
 from __future__ import annotations
 
 import colorsys
-import csv
-import io
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from trackfw.errors import UserError
-from trackfw.formats import read_mot_text, rows_by_frame
-from trackfw.outputs import check_complete_run
+from trackfw.formats.run import check_complete_run, read_run
 
 Image = NDArray[np.uint8]
 Point = tuple[float, float]
@@ -75,43 +69,6 @@ class RunData:
     gaps: list[Gap] = field(default_factory=list)
 
 
-def _read_json(path: Path) -> Any:
-    if not path.is_file():
-        raise UserError(f"{path}: missing; expected a complete run folder (trackfw run writes it).")
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (ValueError, UnicodeDecodeError) as error:
-        raise UserError(f"{path}: not valid JSON ({error}).") from None
-
-
-def _read_tracks(path: Path) -> dict[int, dict[int, Point]]:
-    """tracks.txt (MOTChallenge rows) as 0-based frame -> id -> box centre."""
-    grouped = rows_by_frame(read_mot_text(path), "point")
-    return {
-        frame: {target: (position[0], position[1]) for target, position in targets.items()}
-        for frame, targets in grouped.items()
-    }
-
-
-def _read_frames(path: Path) -> tuple[set[int], set[int]]:
-    """The info-less and the unread frames of frames.csv (0-based)."""
-    infoless: set[int] = set()
-    unread: set[int] = set()
-    if not path.is_file():
-        return infoless, unread
-    reader = csv.DictReader(io.StringIO(path.read_text()))
-    for line_number, row in enumerate(reader, start=2):
-        try:
-            t = int(row["frame"]) - 1
-        except (KeyError, ValueError, TypeError):
-            raise UserError(f"{path}: line {line_number}: frame: expected an integer.") from None
-        if row.get("status", "ok") != "ok":
-            unread.add(t)
-        elif row.get("infoless") == "1":
-            infoless.add(t)
-    return infoless, unread
-
-
 def load_run_data(run_dir: Path) -> RunData:
     """Read one video's run folder.
 
@@ -130,9 +87,19 @@ def load_run_data(run_dir: Path) -> RunData:
         n_frames=int(summary.get("n_frames", 0)),
         box_size=box_size,
     )
-    data.tracks = _read_tracks(run_dir / "tracks.txt")
-    data.infoless, data.unread = _read_frames(run_dir / "frames.csv")
-    gaps = _read_json(run_dir / "gaps.json") if (run_dir / "gaps.json").is_file() else []
+    run = read_run(run_dir)
+    data.tracks = {
+        frame: {target: (position[0], position[1]) for target, position in targets.items()}
+        for frame, targets in run.tracks.items()
+    }
+    for frame, status, infoless in zip(
+        run.frames.frames.tolist(), run.frames.status, run.frames.infoless.tolist(), strict=True
+    ):
+        if status != "ok":
+            data.unread.add(frame)
+        elif infoless:
+            data.infoless.add(frame)
+    gaps = run.gaps if run.gaps is not None else []
     for entry in gaps if isinstance(gaps, list) else []:
         if not isinstance(entry, dict) or not entry.get("resolved") or entry.get("b") is None:
             continue

@@ -17,6 +17,7 @@ import numpy as np
 
 from trackfw.dataset import frame_source_path, load_video
 from trackfw.errors import UserError
+from trackfw.formats.run import SUMMARY_FILE
 from trackfw.records import VideoContext
 from trackfw.video_io import iter_frames
 from trackfw_plugins.render.draw import (
@@ -27,8 +28,6 @@ from trackfw_plugins.render.draw import (
     draw_gap_panel,
     load_run_data,
 )
-
-SUMMARY_FILE = "summary.json"
 
 
 @dataclass

@@ -13,8 +13,8 @@ import pytest
 
 from trackfw.dataset import load_video
 from trackfw.engine import Engine
+from trackfw.formats.run import write_run
 from trackfw.hookspecs import hookimpl
-from trackfw.outputs import write_run
 from trackfw.pipeline import load_pipeline
 from trackfw.records import Detections, FrameData
 from trackfw.registry import Registry, load_registry
@@ -279,7 +279,7 @@ def test_init_from_detections_without_gt(tmp_path: Path, pipeline_file, points_v
 
 
 def test_ground_truth_files_without_rows(tmp_path: Path) -> None:
-    from trackfw.dataset import read_heads, read_targets
+    from trackfw.formats.annotations import read_heads, read_targets
 
     (tmp_path / "heads.csv").write_text("frame,id,x,y,head_size\n")
     (tmp_path / "gt.csv").write_text("frame,id,x,y\n")

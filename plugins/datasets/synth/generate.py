@@ -23,20 +23,16 @@ import numpy as np
 
 from trackfw.arrays import ImageArray
 from trackfw.atomic import atomic_open, write_text
-from trackfw.dataset import (
+from trackfw.dataset import IMAGE_FOLDER, META_FILE, POSES_FILE, VIDEO_FILE, write_meta
+from trackfw.errors import UserError
+from trackfw.formats.annotations import (
     GT_FILE,
     HEADS_FILE,
-    IMAGE_FOLDER,
     INTERVALS_FILE,
-    META_FILE,
-    POSES_FILE,
-    VIDEO_FILE,
     write_heads,
     write_intervals,
-    write_meta,
     write_targets,
 )
-from trackfw.errors import UserError
 
 from .presets import VideoPlan, demo_plan
 from .render import (

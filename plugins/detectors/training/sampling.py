@@ -27,9 +27,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from trackfw.dataset import HEADS_FILE, list_videos, load_video
+from trackfw.dataset import list_videos, load_video
 from trackfw.errors import UserError
 from trackfw.formats import body_heads, boxes_by_frame, read_mot_ground_truth
+from trackfw.formats.annotations import HEADS_FILE
 from trackfw_plugins.detectors.head_scorer import extract_crops
 from trackfw_plugins.detectors.proposals import HeadProposer
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from trackfw.dataset import load_video
 from trackfw.engine import Engine
-from trackfw.outputs import frames_text, gaps_data, tracks_text
+from trackfw.formats.run import frames_text, gaps_data, tracks_text
 from trackfw.pipeline import validate_pipeline
 from trackfw.registry import load_registry
 from trackfw.stage_cache import StageCache, cache_key

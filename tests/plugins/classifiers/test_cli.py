@@ -12,8 +12,9 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from trackfw.dataset import write_heads, write_intervals, write_meta
+from trackfw.dataset import write_meta
 from trackfw.errors import UserError
+from trackfw.formats.annotations import write_heads, write_intervals
 from trackfw.records import Interval
 from trackfw_plugins.classifiers.cli import CACHE_FOLDER, register
 from trackfw_plugins.classifiers.svm_model import load_model

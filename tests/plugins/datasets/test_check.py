@@ -9,7 +9,8 @@ import numpy as np
 import typer
 from typer.testing import CliRunner
 
-from trackfw.dataset import write_heads, write_intervals, write_meta, write_targets
+from trackfw.dataset import write_meta
+from trackfw.formats.annotations import write_heads, write_intervals, write_targets
 from trackfw.records import Interval
 from trackfw_plugins.datasets import check as check_module
 from trackfw_plugins.datasets.check import check_dataset

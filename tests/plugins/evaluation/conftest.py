@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from trackfw.dataset import write_heads, write_intervals, write_meta, write_targets
+from trackfw.dataset import write_meta
+from trackfw.formats.annotations import write_heads, write_intervals, write_targets
 from trackfw.records import Interval
 
 Points = Mapping[int, Mapping[int, tuple[float, float]]]

@@ -11,8 +11,9 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from trackfw.dataset import load_video, read_heads
+from trackfw.dataset import load_video
 from trackfw.errors import UserError
+from trackfw.formats.annotations import read_heads
 from trackfw_plugins.datasets.synth import generate as generate_module
 from trackfw_plugins.datasets.synth.cli import parse_size, register, run_synth
 from trackfw_plugins.datasets.synth.generate import generate_demo, generate_video

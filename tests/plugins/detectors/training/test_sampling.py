@@ -94,7 +94,8 @@ def test_real_sequence_frames(shared_data: Path) -> None:
 def test_dataset_frames_inside_an_interval_are_not_informative(tmp_path: Path) -> None:
     import cv2
 
-    from trackfw.dataset import write_heads, write_intervals, write_meta
+    from trackfw.dataset import write_meta
+    from trackfw.formats.annotations import write_heads, write_intervals
     from trackfw.records import Interval
     from trackfw_plugins.detectors.training.sampling import iter_dataset_frames
 

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from trackfw.errors import UserError
-from trackfw_plugins.evaluation.runs import read_frames_csv, read_run
+from trackfw.formats import mot_track_text
+from trackfw.formats.run import FRAMES_COLUMNS, frames_header, read_frames_csv, read_run
 
 HEADER = "frame,status,infoless_probability,infoless,n_detections,detections,ms_detector,ms_classifier,ms_tracker,ms_gap_matcher"
 
@@ -60,8 +60,24 @@ def test_frames_csv_header_is_checked(tmp_path: Path) -> None:
         read_frames_csv(path)
 
 
-def test_read_run(tmp_path: Path, make_run: Callable[..., Path]) -> None:
-    folder = make_run(tmp_path, "v1", {0: {1: (100.0, 200.0)}}, n_frames=3, infoless_frames=[1])
+def _run_folder(folder: Path) -> Path:
+    """A three-frame run: one track point on frame 1, frame 2 info-less."""
+    folder.mkdir(parents=True)
+    (folder / "tracks.txt").write_text(mot_track_text([(0, 1, 100.0, 200.0)], 80.0))
+    rows = [f"{t + 1},ok,0.5,{int(t == 1)},0,,1,1,1,0" for t in range(3)]
+    (folder / "frames.csv").write_text("\n".join([HEADER, *rows]) + "\n", encoding="utf-8")
+    (folder / "summary.json").write_text('{"video": "v1", "n_frames": 3}\n', encoding="utf-8")
+    (folder / "gaps.json").write_text("[]\n", encoding="utf-8")
+    return folder
+
+
+def test_the_header_is_defined_once() -> None:
+    assert ",".join(frames_header()) == HEADER
+    assert frames_header()[: len(FRAMES_COLUMNS)] == FRAMES_COLUMNS
+
+
+def test_read_run(tmp_path: Path) -> None:
+    folder = _run_folder(tmp_path / "v1")
     run = read_run(folder, n_frames=3)
     assert run.name == "v1"
     assert run.tracks == {0: {1: (100.0, 200.0)}}
