@@ -1,9 +1,13 @@
-"""Speed of the edgebox-cnn head detector per frame, split into proposals and CNN scoring.
+"""Speed of a detector per 1280x720 frame (edgebox-cnn split into proposals and CNN scoring).
 
 Usage::
 
     python benchmarks/detector_speed.py [--video DIR] [--frames 20] [--threads 0] [--sequential]
         [--set blob_scales_per_octave=3 ...]
+    python benchmarks/detector_speed.py --detector yolox [--threads 2] [--set input_size=640 ...]
+
+``--detector`` is ``edgebox-cnn`` (default), ``yolox`` or ``light-person-192`` (the yolox
+detector's small model); ``--set`` then changes a parameter of that detector.
 
 ``--video`` is a trackfw video folder (frames are resized to 1280x720 when they differ); without it
 a synthetic 1280x720 frame (textured ground, 30 disc "heads") is used. Single process, onnxruntime
@@ -25,6 +29,7 @@ import numpy as np
 from stage_overrides import add_set_option, parse_overrides
 
 from trackfw_plugins.detectors.edgebox_cnn import EdgeBoxCnnDetector, EdgeBoxCnnParams
+from trackfw_plugins.detectors.yolox import YoloxDetector, YoloxParams
 
 WIDTH, HEIGHT = 1280, 720
 
@@ -61,6 +66,35 @@ def video_frames(video: Path, count: int) -> list[np.ndarray]:
     return frames[:count]
 
 
+def time_yolox(
+    arguments: argparse.Namespace, frames: list[np.ndarray], overrides: dict[str, object]
+) -> None:
+    """Time the yolox detector (whole detect_image: letterbox, network, decoding, NMS)."""
+    import os
+
+    if arguments.detector == "light-person-192":
+        overrides = {"model": "light-person-192", **overrides}
+    params = YoloxParams(threads=arguments.threads, **overrides)  # type: ignore[arg-type]
+    detector = YoloxDetector(params)
+    detector.detect_image(frames[0])  # warm-up (onnxruntime allocations)
+    totals, found = [], []
+    for frame in itertools.islice(itertools.cycle(frames), arguments.frames):
+        started = time.perf_counter()
+        found.append(len(detector.detect_image(frame)))
+        totals.append(time.perf_counter() - started)
+    source = arguments.video or "synthetic frames"
+    print(
+        f"yolox ({params.model}, input {detector.side}, tiles {params.tiles}) on {len(totals)}"
+        f" frames of {source} at {WIDTH}x{HEIGHT}, 1 process, onnxruntime threads"
+        f" {params.threads or 'auto'}, load average {os.getloadavg()[0]:.1f}"
+    )
+    print(
+        f"  total {1000 * statistics.mean(totals):6.1f} ms (median"
+        f" {1000 * statistics.median(totals):.1f}) -> {1 / statistics.mean(totals):.1f} fps,"
+        f" {statistics.mean(found):.1f} detections per frame"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--video", type=Path, default=None, help="trackfw video folder")
@@ -72,6 +106,9 @@ def main() -> None:
     parser.add_argument(
         "--sequential", action="store_true", help="no EdgeBoxes thread (overlap_proposals off)"
     )
+    parser.add_argument(
+        "--detector", default="edgebox-cnn", choices=["edgebox-cnn", "yolox", "light-person-192"]
+    )
     arguments = parser.parse_args()
     frames = (
         video_frames(arguments.video, arguments.frames)
@@ -79,6 +116,9 @@ def main() -> None:
         else synthetic_frames(arguments.frames)
     )
     overrides = parse_overrides(arguments.overrides)
+    if arguments.detector != "edgebox-cnn":
+        time_yolox(arguments, frames, overrides)
+        return
     params = EdgeBoxCnnParams(
         intra_op_threads=arguments.threads,
         overlap_proposals=not arguments.sequential,
@@ -109,7 +149,9 @@ def main() -> None:
         f" threads {params.intra_op_threads}, EdgeBoxes in its own thread: {params.overlap_proposals}"
     )
     print(f"  total      {ms(totals)}  -> {1 / statistics.mean(totals):.1f} fps")
-    print(f"  proposals  {ms(proposals)}  ({statistics.mean(counts):.0f} boxes per frame; waited for)")
+    print(
+        f"  proposals  {ms(proposals)}  ({statistics.mean(counts):.0f} boxes per frame; waited for)"
+    )
     print(f"    EdgeBoxes  {ms(edge_boxes)}")
     print(f"    DoG blobs  {ms(blobs)}")
     print(f"  scoring    {ms(scoring)}")

@@ -18,12 +18,14 @@ def trackfw_register_stages(registry: Registry) -> None:
     from trackfw_plugins.detectors.mot_file import MotFileDetector
     from trackfw_plugins.detectors.onnx_detector import OnnxDetector
     from trackfw_plugins.detectors.oracle import OracleDetector
+    from trackfw_plugins.detectors.yolox import YoloxDetector
 
     registry.add_detector(OracleDetector)
     registry.add_detector(EdgeBoxCnnDetector)
     registry.add_detector(HogDetector)
     registry.add_detector(OnnxDetector)
     registry.add_detector(MotFileDetector)
+    registry.add_detector(YoloxDetector)
 
 
 @hookimpl

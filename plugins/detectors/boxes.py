@@ -10,7 +10,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from trackfw.errors import UserError
-from trackfw.formats import HEAD_FRACTION, BoxAnchor, box_points
+from trackfw.formats import (
+    HEAD_FRACTION,
+    HEAD_SIZE_FRACTION,
+    BoxAnchor,
+    body_head_points,
+    box_points,
+)
 from trackfw.records import Detections, FrameData
 
 
@@ -81,6 +87,48 @@ def suppress_nested_centres(
     return order[keep]
 
 
+def head_boxes_from_bodies(
+    boxes: NDArray[np.float64], fraction: float = HEAD_FRACTION
+) -> NDArray[np.float64]:
+    """Square ``(N, 4)`` head boxes centred on each body box's head point.
+
+    The head point and size follow :mod:`trackfw.formats.head_point` (centre at ``fraction`` of
+    the height below the top, side ``HEAD_SIZE_FRACTION`` of the height); a detector of people
+    hands these on so that later stages read a head size from its boxes, as from a head detector.
+
+    >>> import numpy as np
+    >>> head_boxes_from_bodies(np.array([[10.0, 20.0, 40.0, 100.0]])).round(2).tolist()
+    [[23.5, 21.5, 13.0, 13.0]]
+    """
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    points = body_head_points(boxes, fraction)
+    side = HEAD_SIZE_FRACTION * boxes[:, 3]
+    return np.stack([points[:, 0] - side / 2, points[:, 1] - side / 2, side, side], axis=1)
+
+
+def body_boxes_from_heads(
+    points: NDArray[np.float64],
+    sizes: NDArray[np.float64],
+    aspect: float = 0.5,
+    fraction: float = HEAD_FRACTION,
+) -> NDArray[np.float64]:
+    """Whole-body ``(N, 4)`` boxes of people with ``(N, 2)`` head points and ``(N,)`` head sizes.
+
+    The inverse of :func:`head_boxes_from_bodies` for the height (``h = size /
+    HEAD_SIZE_FRACTION``, top at ``y - fraction h``); the width is ``aspect h`` (0.5: the 1:2
+    crops re-ID networks take).
+
+    >>> import numpy as np
+    >>> body_boxes_from_heads(np.array([[30.0, 28.0]]), np.array([13.0])).round(2).tolist()
+    [[5.0, 20.0, 50.0, 100.0]]
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    height = np.asarray(sizes, dtype=np.float64).reshape(-1) / HEAD_SIZE_FRACTION
+    width = aspect * height
+    top = points[:, 1] - fraction * height
+    return np.stack([points[:, 0] - width / 2, top, width, height], axis=1)
+
+
 def detections_from_boxes(
     boxes: NDArray[np.float64],
     scores: NDArray[np.float64],
@@ -98,9 +146,7 @@ def detections_from_boxes(
             height (the project's one head-point rule, default 0.08).
     """
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
-    return Detections(
-        points=box_points(boxes, point, body_fraction), scores=scores, boxes=boxes
-    )
+    return Detections(points=box_points(boxes, point, body_fraction), scores=scores, boxes=boxes)
 
 
 def frame_pixels(frame: FrameData, detector: str) -> NDArray[np.uint8]:
