@@ -1,10 +1,14 @@
-"""The ``reid`` gap matcher: LOMO or GOG person re-identification at frame b (paper section 4.2).
+"""The ``reid`` gap matcher: LOMO, GOG or deep person re-identification at frame b (section 4.2).
 
 The paper's re-ID baselines track inside segments like the proposed method and, on frame b,
 match targets to detections by descriptor distance. Each target's descriptor comes from its
 crop at its tracked position on frame a, each detection's from its crop on frame b; the
 training-free distance (pooled mean subtraction, L2, Euclidean; ALGORITHMS.md 8.1-8.2) feeds a
 Hungarian assignment. Targets left without a detection are placed at the predictor's position.
+
+``descriptor: person-reid`` [OURS] uses a pretrained deep embedder instead
+(:mod:`trackfw_plugins.maths.person_reid`): body crops from the head points and the detections'
+head sizes, cosine distance between the L2-normalised embeddings.
 """
 
 from __future__ import annotations
@@ -15,19 +19,35 @@ import numpy as np
 from pydantic import Field
 
 from trackfw.arrays import FloatArray
-from trackfw.records import NO_MATCH, GapProblem, GapSolution
-from trackfw.stages import GapMatcher, StageParams
+from trackfw.records import NO_MATCH, Detections, GapProblem, GapSolution
+from trackfw.stages import GapMatcher, Stage, StageParams
 from trackfw_plugins.maths.assignment import hungarian
 from trackfw_plugins.maths.gog import gog_block_sizes, gog_descriptors
 from trackfw_plugins.maths.lomo import lomo_descriptors
-from trackfw_plugins.maths.reid_crop import reid_crops, reid_distance_matrix
+from trackfw_plugins.maths.person_reid import (
+    PersonReidEmbedder,
+    body_boxes,
+    cosine_distance_matrix,
+    detection_rows,
+)
+from trackfw_plugins.maths.reid_crop import head_size, reid_crops, reid_distance_matrix
 
 
 class ReidParams(StageParams):
     """Parameters of the re-ID gap matcher."""
 
-    descriptor: Literal["lomo", "gog"] = Field(
-        "lomo", description="re-ID descriptor: 'lomo' (Liao 2015) or 'gog' (Matsukawa 2016)"
+    descriptor: Literal["lomo", "gog", "person-reid"] = Field(
+        "lomo",
+        description="re-ID descriptor: 'lomo' (Liao 2015), 'gog' (Matsukawa 2016) or"
+        " 'person-reid' (a pretrained deep embedder, cosine distance)",
+    )
+    reid_model: str = Field(
+        "0287",
+        description="person-reid: embedder '0287' (shipped), '0248' (shipped, smaller) or an"
+        " ONNX path",
+    )
+    threads: int = Field(
+        0, ge=0, description="person-reid: onnxruntime threads; 0 = the automatic choice"
     )
     crop: Literal["body", "head80"] = Field(
         "body",
@@ -40,6 +60,22 @@ class ReidGapMatcher(GapMatcher[ReidParams]):
 
     name = "reid"
     uses_pixels = True
+
+    def __init__(self, params: ReidParams | None = None, **nested: Stage) -> None:
+        super().__init__(params, **nested)
+        assert isinstance(self.params, ReidParams)
+        self.embedder = (
+            PersonReidEmbedder(self.params.reid_model, self.params.threads)
+            if self.params.descriptor == "person-reid"
+            else None
+        )
+
+    def _embeddings(
+        self, image: np.ndarray, points: FloatArray, detections: Detections | None, rows: np.ndarray
+    ) -> FloatArray:
+        assert self.embedder is not None
+        boxes = body_boxes(points, detections, rows, head_size(image.shape[0]))
+        return self.embedder.describe(image, boxes)
 
     def _descriptors(self, image: np.ndarray, points: FloatArray) -> FloatArray:
         params = self.params
@@ -58,10 +94,23 @@ class ReidGapMatcher(GapMatcher[ReidParams]):
         detections = problem.detections
         cost = None
         if len(detections) and len(positions):
-            query = self._descriptors(problem.frame_a, problem.positions_at_a)
-            gallery = self._descriptors(problem.frame_b, detections.points)
-            blocks = gog_block_sizes() if params.descriptor == "gog" else None
-            distances = reid_distance_matrix(query, gallery, blocks)
+            if self.embedder is not None:
+                matched_at_a = [state.matched_detection for state in problem.states]
+                query = self._embeddings(
+                    problem.frame_a,
+                    problem.positions_at_a,
+                    problem.detections_a,
+                    detection_rows(problem.detections_a, matched_at_a),
+                )
+                gallery = self._embeddings(
+                    problem.frame_b, detections.points, detections, np.arange(len(detections))
+                )
+                distances = cosine_distance_matrix(query, gallery)
+            else:
+                query = self._descriptors(problem.frame_a, problem.positions_at_a)
+                gallery = self._descriptors(problem.frame_b, detections.points)
+                blocks = gog_block_sizes() if params.descriptor == "gog" else None
+                distances = reid_distance_matrix(query, gallery, blocks)
             rows = hungarian(distances)
             assigned = np.flatnonzero(rows >= 0)
             positions[assigned] = detections.points[rows[assigned]]

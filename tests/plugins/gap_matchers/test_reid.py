@@ -20,7 +20,7 @@ def _frame(points: np.ndarray, colours: list[tuple[int, int, int]], seed: int) -
     return image
 
 
-@pytest.mark.parametrize("descriptor", ["lomo", "gog"])
+@pytest.mark.parametrize("descriptor", ["lomo", "gog", "person-reid"])
 def test_reid_relinks_shuffled_people(descriptor: str) -> None:
     at_a = np.array([[100.0, 80.0], [220.0, 90.0], [340.0, 85.0], [460.0, 95.0]])
     order = [2, 0, 3, 1]
