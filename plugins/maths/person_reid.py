@@ -26,8 +26,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from trackfw.arrays import FloatArray, IntArray
 from trackfw.errors import UserError
+from trackfw.formats import HEAD_SIZE_FRACTION
 from trackfw.records import Detections
-from trackfw_plugins.detectors.boxes import HEAD_SIZE_FRACTION, body_boxes_from_heads
+from trackfw_plugins.detectors.boxes import body_boxes_from_heads
 from trackfw_plugins.detectors.head_scorer import resolve_threads
 from trackfw_plugins.maths.reid_crop import crop_box
 
@@ -56,10 +57,10 @@ def _is_body(boxes: FloatArray) -> NDArray[np.bool_]:
 
 
 def head_sizes_of(boxes: FloatArray) -> FloatArray:
-    """Head size of each ``(N, 4)`` detection box: its side, or 0.118 h for a tall body box.
+    """Head size of each ``(N, 4)`` detection box: its side, or HEAD_SIZE_FRACTION h for a tall body box.
 
     >>> head_sizes_of(np.array([[0.0, 0.0, 10.0, 12.0], [0.0, 0.0, 40.0, 100.0]])).round(3).tolist()
-    [11.0, 11.8]
+    [11.0, 13.0]
     """
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     return np.where(_is_body(boxes), HEAD_SIZE_FRACTION * boxes[:, 3], boxes[:, 2:4].mean(axis=1))

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from trackfw.errors import UserError
+from trackfw.formats import HEAD_SIZE_FRACTION
 from trackfw.records import Detections
-from trackfw_plugins.detectors.boxes import HEAD_SIZE_FRACTION
 from trackfw_plugins.maths.person_reid import (
     PERSON_REID_MODELS,
     PersonReidEmbedder,
@@ -56,15 +56,17 @@ def test_body_boxes_from_head_boxes_body_boxes_and_fallbacks() -> None:
         boxes=np.array([[94.0, 44.0, 12.0, 12.0], [280.0, 40.0, 40.0, 120.0]]),
     )
     boxes = body_boxes(points, detections, np.array([0, 1, -1]), fallback_size=99.0)
-    # A square head box of side 12 gives a body 12 / 0.118 tall, 1:2 wide, centred on the head.
+    # A square head box of side 12 gives a body 12 / HEAD_SIZE_FRACTION tall, 1:2 wide, centred on the head.
     height = 12.0 / HEAD_SIZE_FRACTION
     assert boxes[0, 3] == pytest.approx(height) and boxes[0, 2] == pytest.approx(height / 2)
     assert boxes[0, 0] + boxes[0, 2] / 2 == pytest.approx(100.0)
     # A tall box is already a body box.
     assert boxes[1].tolist() == [280.0, 40.0, 40.0, 120.0]
-    # No detection: the median head size of the frame (12 and 0.118 * 120 = 14.16).
-    assert boxes[2, 3] == pytest.approx(np.median([12.0, 14.16]) / HEAD_SIZE_FRACTION)
-    alone = body_boxes(points[:1], None, np.array([-1]), fallback_size=11.8)
+    # No detection: the median head size of the frame (12 and HEAD_SIZE_FRACTION * 120).
+    assert boxes[2, 3] == pytest.approx(
+        np.median([12.0, HEAD_SIZE_FRACTION * 120.0]) / HEAD_SIZE_FRACTION
+    )
+    alone = body_boxes(points[:1], None, np.array([-1]), fallback_size=HEAD_SIZE_FRACTION * 100)
     assert alone[0, 3] == pytest.approx(100.0)
 
 
