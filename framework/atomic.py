@@ -67,3 +67,49 @@ def _json_default(value: Any) -> Any:
     if hasattr(value, "tolist"):
         return value.tolist()
     raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def check_output_folder(path: str | os.PathLike[str], field: str) -> None:
+    """Fail early, before any work, when ``path`` cannot become a folder of outputs.
+
+    The folder itself need not exist (it is created when the first file is written), but it must
+    not be a file, and the nearest existing folder on the way to it must be writable.
+
+    Raises:
+        UserError: naming ``field`` (the option or setting that gave the path) and the path.
+    """
+    from trackfw.errors import UserError
+
+    target = Path(path)
+    if target.exists() and not target.is_dir():
+        raise UserError(
+            f"{field}: {target} is an existing file; expected a folder (created when missing)."
+        )
+    existing = target
+    while not existing.exists():
+        if existing.parent == existing:  # pragma: no cover - the root always exists
+            break
+        existing = existing.parent
+    if not existing.is_dir():
+        raise UserError(
+            f"{field}: {target}: {existing} is a file, not a folder; expected a path in a folder."
+        )
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise UserError(
+            f"{field}: {target}: the folder {existing} is not writable; expected a folder you can"
+            " write to."
+        )
+
+
+def check_output_file(path: str | os.PathLike[str], field: str) -> None:
+    """Fail early when ``path`` cannot be written as a file (it may exist: it is replaced).
+
+    Raises:
+        UserError: when ``path`` is a folder or its folder cannot be written.
+    """
+    from trackfw.errors import UserError
+
+    target = Path(path)
+    if target.is_dir():
+        raise UserError(f"{field}: {target} is a folder; expected a file name.")
+    check_output_folder(target.parent, field)

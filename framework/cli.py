@@ -8,7 +8,11 @@ print one line each and exit with code 2, without a traceback unless ``--debug``
 from __future__ import annotations
 
 import json
+import signal
 import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -23,7 +27,7 @@ from trackfw.registry import Registry, call_command_hooks, load_registry, params
 console = Console()
 error_console = Console(stderr=True)
 
-_state: dict[str, Any] = {"debug": False, "registry": None}
+_state: dict[str, Any] = {"debug": False, "registry": None, "signal": None}
 
 
 def get_registry() -> Registry:
@@ -239,41 +243,113 @@ def build_app(registry: Registry | None = None) -> typer.Typer:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Console-script entry point; returns the exit code."""
+    """Console-script entry point; returns the exit code.
+
+    0 on success, 2 for anything the user can fix (bad input, usage errors, files that cannot be
+    written), 130 after Ctrl-C (143 after SIGTERM), 1 for a bug (one line; ``--debug`` shows the
+    traceback).
+    """
     arguments = sys.argv[1:] if argv is None else argv
     _state["debug"] = "--debug" in arguments
     _state["registry"] = None  # plugins are discovered afresh for every invocation
-    try:
-        app = build_app()
-        # Without standalone mode click returns a command's typer.Exit code instead of exiting.
-        result = app(args=arguments, prog_name="trackfw", standalone_mode=False)
-        if isinstance(result, int):
-            return result
-    except UserError as error:
-        for line in error.lines:
-            error_console.print(f"error: {line}", markup=False, highlight=False, soft_wrap=True)
-        return 2
-    except typer.Exit as done:
-        return int(done.exit_code or 0)
-    except typer.Abort:
-        error_console.print("aborted")
-        return 130
-    except Exception as error:  # click usage errors and bugs
-        import click
-
-        if isinstance(error, click.exceptions.ClickException):
-            error.show()
+    _state["signal"] = None
+    with _signals_as_interrupts():
+        try:
+            app = build_app()
+            # Without standalone mode typer returns a command's typer.Exit code instead of exiting
+            # and raises usage errors instead of printing them, so they are all printed here.
+            result = app(args=arguments, prog_name="trackfw", standalone_mode=False)
+            code = result if isinstance(result, int) else 0
+        except UserError as error:
+            for line in error.lines:
+                _print_error(line)
             return 2
-        if _state["debug"]:
-            raise
-        error_console.print(
-            f"error: {type(error).__name__}: {error} (run with --debug for the traceback)",
-            markup=False,
-            highlight=False,
-            soft_wrap=True,
+        except typer.Exit as done:
+            code = int(done.exit_code or 0)
+        except typer.Abort:
+            _print_error("aborted.")
+            return 130
+        except typer.TyperException as error:  # usage errors: unknown command, missing argument...
+            _print_usage_error(error)
+            return 2
+        except KeyboardInterrupt:  # outside a command (typer turns it into exit code 130 inside)
+            code = 130
+        except OSError as error:
+            # Files the user named or the disk they are on (permissions, a full disk, a file
+            # where a folder should be): the system's reason is the message.
+            if _state["debug"]:
+                raise
+            _print_error(_os_error_message(error))
+            return 2
+        except Exception as error:  # bugs
+            if _state["debug"]:
+                raise
+            _print_error(f"{type(error).__name__}: {error} (run with --debug for the traceback)")
+            return 1
+    if code == 130 or _state["signal"] is not None:
+        signum = _state["signal"] or signal.SIGINT
+        _print_error(
+            f"interrupted by {signal.Signals(signum).name}; the files written so far are complete"
+            " (each is written whole or not at all)."
         )
-        return 1
-    return 0
+        return 128 + int(signum)
+    return code
+
+
+def _print_error(line: str) -> None:
+    error_console.print(f"error: {line}", markup=False, highlight=False, soft_wrap=True)
+
+
+def _print_usage_error(error: typer.TyperException) -> None:
+    """One line: typer's message, the usage of the command and where its help is."""
+    if type(error).__name__ == "NoArgsIsHelpError":
+        return  # typer has printed the help already; there is no error to add
+    message = error.format_message().strip()
+    if not message.endswith((".", "!", "?")):
+        message += "."
+    context = getattr(error, "ctx", None)
+    get_usage = getattr(context, "get_usage", None)
+    if callable(get_usage):
+        usage = " ".join(str(get_usage()).split())  # usage may wrap on narrow terminals
+        help_option = (getattr(context, "help_option_names", None) or ["--help"])[0]
+        command = getattr(context, "command_path", "trackfw")
+        message += f" {usage}; see '{command} {help_option}'."
+    _print_error(message)
+
+
+def _os_error_message(error: OSError) -> str:
+    reason = error.strerror or str(error)
+    if error.filename is None:
+        return f"{reason}."
+    if error.filename2 is not None:
+        return f"{error.filename} -> {error.filename2}: {reason}."
+    return f"{error.filename}: {reason}."
+
+
+@contextmanager
+def _signals_as_interrupts() -> Iterator[None]:
+    """SIGINT and SIGTERM raise KeyboardInterrupt in the main thread while the CLI runs.
+
+    Both then unwind through the atomic writers (framework/atomic.py), which remove their
+    temporary files, so an interrupted command leaves only complete files; ``_state["signal"]``
+    says which signal it was, for the exit code (128 + signal number).
+    """
+
+    def interrupt(signum: int, _frame: object) -> None:
+        _state["signal"] = signum
+        raise KeyboardInterrupt
+
+    if threading.current_thread() is not threading.main_thread():
+        yield  # signal handlers can only be set from the main thread (e.g. tests in threads)
+        return
+    previous = {signum: signal.getsignal(signum) for signum in (signal.SIGINT, signal.SIGTERM)}
+    for signum in previous:
+        signal.signal(signum, interrupt)
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from trackfw.atomic import check_output_folder
 from trackfw.dataset import list_videos, load_video
 from trackfw.engine import Engine, VideoRun, check_videos
 from trackfw.errors import UserError
@@ -58,6 +59,9 @@ def prepare_run(
 ) -> PreparedRun:
     """Validate the pipeline, resolve and read every input video; writes nothing."""
     pipeline = load_pipeline(pipeline_path, registry, overrides)
+    # Checked before the videos are read: a run must not end in "cannot write" after the work.
+    destination = output or Path("runs") / pipeline.name
+    check_output_folder(destination, "--output" if output is not None else "output (default)")
     if input_value is not None:
         source = resolve_input(registry, input_value, "--input")
     elif pipeline.input is not None:
@@ -68,7 +72,7 @@ def prepare_run(
         )
     videos = [load_video(path) for path in list_videos(source)]
     check_videos(pipeline.build(), videos)
-    return PreparedRun(pipeline, videos, output or Path("runs") / pipeline.name)
+    return PreparedRun(pipeline, videos, destination)
 
 
 def run_prepared(

@@ -1,0 +1,223 @@
+"""Bad input to every core command: one ``error:`` line, exit code 2, no traceback, nothing written.
+
+Signals: Ctrl-C (SIGINT) exits 130 and SIGTERM 143, leaving only complete files.
+Plugin commands have their own sweeps under tests/plugins/<package>/test_cli_bad_inputs.py.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from trackfw.cli import main
+
+from .conftest import PIPELINE
+
+
+def run_cli(capsys: pytest.CaptureFixture[str], *arguments: object) -> tuple[int, str]:
+    """Exit code and stderr of ``trackfw ARGUMENTS`` run in this process."""
+    code = main([str(argument) for argument in arguments])
+    return code, capsys.readouterr().err
+
+
+def assert_one_error_line(code: int, stderr: str, *fragments: str, expected_code: int = 2) -> str:
+    """The run failed with ``expected_code`` and said so in one ``error:`` line with ``fragments``."""
+    lines = [line for line in stderr.splitlines() if line.strip()]
+    assert code == expected_code, stderr
+    assert "Traceback" not in stderr
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("error: "), lines[0]
+    for fragment in fragments:
+        assert fragment in lines[0], (fragment, lines[0])
+    return lines[0]
+
+
+def files_under(folder: Path) -> list[Path]:
+    return sorted(path for path in folder.rglob("*") if path.is_file()) if folder.exists() else []
+
+
+# ----------------------------------------------------------------------------------- usage errors
+
+USAGE_ERRORS = [
+    (["frobnicate"], ["No such command 'frobnicate'", "Usage: trackfw", "trackfw --help"]),
+    (["run"], ["Missing argument", "Usage: trackfw run", "trackfw run --help"]),
+    (["run", "p.yaml", "--frobnicate"], ["No such option: --frobnicate", "trackfw run --help"]),
+    (["run", "p.yaml", "--output"], ["--output", "requires an argument"]),
+    (["validate"], ["Missing argument", "Usage: trackfw validate"]),
+    (["plugins", "extra"], ["unexpected extra argument", "Usage: trackfw plugins"]),
+    (["bench", "p.yaml", "--dataset", "d", "--jobs", "many"], ["--jobs", "integer"]),
+    (
+        ["bench", "p.yaml", "--dataset", "d", "--jobs", "0"],
+        ["--jobs", "greater than or equal to 1"],
+    ),
+    (["eval", "--runs", "r"], ["Missing option '--dataset'"]),
+    (["render", "r", "--trail", "-3"], ["--trail", "greater than or equal to 0"]),
+    (["dataset", "frobnicate"], ["No such command 'frobnicate'", "trackfw dataset --help"]),
+    (["train", "classifier", "--frobnicate"], ["No such option", "trackfw train classifier"]),
+]
+
+
+@pytest.mark.parametrize(("arguments", "fragments"), USAGE_ERRORS, ids=lambda v: "-".join(v))
+def test_usage_errors_are_one_line_with_the_usage(
+    arguments: list[str],
+    fragments: list[str],
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # typer >= 0.26 vendors click: the error path must not need the click package.
+    monkeypatch.setitem(sys.modules, "click", None)
+    code, stderr = run_cli(capsys, *arguments)
+    assert_one_error_line(code, stderr, *fragments)
+
+
+@pytest.mark.parametrize("group", [[], ["dataset"], ["train"]], ids=["root", "dataset", "train"])
+def test_a_group_without_command_shows_its_help(
+    group: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = main(group)
+    captured = capsys.readouterr()
+    assert code == 2
+    assert "Usage: trackfw" in captured.out + captured.err
+    assert "Traceback" not in captured.err and "error:" not in captured.err
+
+
+def test_an_unexpected_exception_is_one_line_with_exit_1(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # A bug, not bad input: one line, exit 1, and --debug for the traceback.
+    def broken(*_arguments: object, **_options: object) -> None:
+        raise ZeroDivisionError("a bug")
+
+    monkeypatch.setitem(sys.modules, "click", None)
+    monkeypatch.setattr("trackfw.pipeline.load_pipeline", broken)
+    code, stderr = run_cli(capsys, "validate", "p.yaml")
+    assert_one_error_line(code, stderr, "ZeroDivisionError: a bug", "--debug", expected_code=1)
+    with pytest.raises(ZeroDivisionError):
+        main(["--debug", "validate", "p.yaml"])
+
+
+# ---------------------------------------------------------------------------------- run --output
+
+
+def test_output_that_is_an_existing_file_fails_before_any_work(
+    pipeline_file: Callable[..., Path],
+    points_video: Callable[..., Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    existing = tmp_path / "results.txt"
+    existing.write_text("keep me\n", encoding="utf-8")
+    video = points_video()
+
+    def no_work(*_arguments: object) -> None:
+        raise AssertionError("videos were read before the output was checked")
+
+    monkeypatch.setattr("trackfw.runner.load_video", no_work)
+    code, stderr = run_cli(capsys, "run", pipeline_file(), "-i", video, "-o", existing, "-q")
+    assert_one_error_line(code, stderr, "--output", str(existing), "existing file", "folder")
+    assert existing.read_text(encoding="utf-8") == "keep me\n"
+
+
+def test_output_inside_a_file_fails_before_any_work(
+    pipeline_file: Callable[..., Path],
+    points_video: Callable[..., Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    existing = tmp_path / "results.txt"
+    existing.write_text("", encoding="utf-8")
+    code, stderr = run_cli(
+        capsys, "run", pipeline_file(), "-i", points_video(), "-o", existing / "sub", "-q"
+    )
+    assert_one_error_line(code, stderr, "--output", str(existing), "not a folder")
+
+
+def test_output_in_an_unwritable_folder_fails_before_any_work(
+    pipeline_file: Callable[..., Path],
+    points_video: Callable[..., Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o555)
+    if os.access(locked, os.W_OK):
+        # root writes anywhere: make the permission check see what a normal user would.
+        real_access = os.access
+        monkeypatch.setattr(
+            os,
+            "access",
+            lambda path, mode, **kw: False if Path(path) == locked else real_access(path, mode),
+        )
+    try:
+        code, stderr = run_cli(
+            capsys, "run", pipeline_file(), "-i", points_video(), "-o", locked / "out", "-q"
+        )
+    finally:
+        locked.chmod(0o755)
+    assert_one_error_line(code, stderr, "--output", str(locked), "not writable")
+    assert files_under(locked) == []
+
+
+def test_default_output_is_checked_too(
+    pipeline_file: Callable[..., Path],
+    points_video: Callable[..., Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "runs").write_text("", encoding="utf-8")  # a file where runs/ should go
+    code, stderr = run_cli(capsys, "run", pipeline_file(), "-i", points_video(), "-q")
+    assert_one_error_line(code, stderr, "output", "runs", "not a folder")
+
+
+# ---------------------------------------------------------------------------------------- signals
+
+
+@pytest.mark.parametrize(
+    ("signum", "expected_code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["int", "term"]
+)
+def test_a_signal_mid_run_exits_128_plus_signal_and_leaves_only_complete_videos(
+    signum: int,
+    expected_code: int,
+    pipeline_file: Callable[..., Path],
+    points_video: Callable[..., Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from trackfw.engine import Engine
+
+    points_video("a")
+    points_video("b")
+    output = tmp_path / "out"
+    real_run_video = Engine.run_video
+    calls: list[str] = []
+
+    def run_video(self: Engine, video: object, *arguments: object, **options: object) -> object:
+        calls.append(str(getattr(video, "name", "")))
+        if len(calls) == 2:  # the user presses Ctrl-C (or kill runs) during the second video
+            os.kill(os.getpid(), signum)
+        return real_run_video(self, video, *arguments, **options)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Engine, "run_video", run_video)
+    previous = signal.getsignal(signum)
+    code, stderr = run_cli(
+        capsys, "run", pipeline_file(PIPELINE), "-i", tmp_path / "data", "-o", output, "-q"
+    )
+    assert signal.getsignal(signum) == previous  # the CLI put the handler back
+    assert_one_error_line(
+        code, stderr, f"interrupted by {signal.Signals(signum).name}", expected_code=expected_code
+    )
+    assert calls == ["a", "b"]
+    assert {path.name for path in files_under(output / "a")} >= {"summary.json", "tracks.txt"}
+    assert not (output / "b").exists()
+    assert not [path for path in files_under(output) if path.suffix == ".tmp"]
