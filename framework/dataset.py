@@ -73,6 +73,15 @@ def list_videos(dataset: Path) -> list[Path]:
     return videos
 
 
+def _has_frames(video_dir: Path) -> bool:
+    """True when ``video_dir`` is a video file or a folder with frames (not point-only)."""
+    try:
+        frame_source_path(video_dir)
+    except UserError:
+        return False
+    return True
+
+
 def frame_source_path(video_dir: Path) -> Path:
     """The file or folder holding the frames of a video."""
     if video_dir.is_file():
@@ -112,47 +121,42 @@ def count_frames(video_dir: Path) -> int:
     source = frame_source_path(video_dir)
     if source.is_dir():
         return sum(1 for child in source.iterdir() if child.suffix.lower() in IMAGE_SUFFIXES)
-    import cv2
+    from trackfw.video_io import probe_container
 
-    capture = cv2.VideoCapture(str(source))
-    try:
-        return int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
-    finally:
-        capture.release()
+    return probe_container(source).n_frames
 
 
 def _frame_size(video_dir: Path) -> tuple[int, int, float]:
     import cv2
 
+    from trackfw.video_io import check_frame_sizes, probe_container
+
     source = frame_source_path(video_dir)
     if source.is_dir():
-        first = next(
-            (c for c in sorted(source.iterdir()) if c.suffix.lower() in IMAGE_SUFFIXES), None
-        )
-        image = None if first is None else cv2.imread(str(first))
+        files = sorted(c for c in source.iterdir() if c.suffix.lower() in IMAGE_SUFFIXES)
+        image = cv2.imread(str(files[0])) if files else None
         if image is None:
-            raise UserError(f"{source}: no readable image to take the frame size from.")
+            raise UserError(
+                f"{source}: no readable image to take the frame size from; expected frames named"
+                f" like 000001.jpg ({', '.join(IMAGE_SUFFIXES)})."
+            )
+        check_frame_sizes(files, image.shape[1], image.shape[0])
         return image.shape[1], image.shape[0], 30.0
-    capture = cv2.VideoCapture(str(source))
-    try:
-        width = int(capture.get(cv2.CAP_PROP_FRAME_WIDTH))
-        height = int(capture.get(cv2.CAP_PROP_FRAME_HEIGHT))
-        fps = float(capture.get(cv2.CAP_PROP_FPS)) or 30.0
-    finally:
-        capture.release()
-    if width <= 0 or height <= 0:
-        raise UserError(f"{source}: cannot read the video's frame size.")
-    return width, height, fps
+    info = probe_container(source)
+    return info.width, info.height, info.fps
 
 
 def load_video(video_dir: Path) -> VideoContext:
     """Read one video's metadata and ground truth (whatever of it exists)."""
     video_dir = Path(video_dir)
     meta = read_meta(video_dir) if video_dir.is_dir() else {}
+    # The frames are probed even when meta.json gives their size: a file that is no video, or a
+    # folder of frames of mixed sizes, is a one-line error here rather than a run of unread frames.
+    probed = _frame_size(video_dir) if _has_frames(video_dir) or not meta else None
     if {"width", "height"} <= meta.keys():
         width, height, fps = int(meta["width"]), int(meta["height"]), float(meta.get("fps", 30.0))
     else:
-        width, height, fps = _frame_size(video_dir)
+        width, height, fps = probed if probed is not None else _frame_size(video_dir)
         fps = float(meta.get("fps", fps))
     n_frames = count_frames(video_dir)
     ground_truth: GroundTruth | None = None

@@ -221,3 +221,79 @@ def test_a_signal_mid_run_exits_128_plus_signal_and_leaves_only_complete_videos(
     assert {path.name for path in files_under(output / "a")} >= {"summary.json", "tracks.txt"}
     assert not (output / "b").exists()
     assert not [path for path in files_under(output) if path.suffix == ".tmp"]
+
+
+# ------------------------------------------------------------------------------------ run --input
+
+
+@pytest.mark.parametrize(
+    ("content", "fragments"),
+    [
+        (b"", ["empty file (0 bytes)", "expected a video file"]),
+        (b"this is a text file, not a video\n" * 20, ["not a video FFmpeg can open"]),
+        (b"\x00\x00\x00\x18ftypmp42" + bytes(200), ["not a video FFmpeg can open"]),
+    ],
+    ids=["empty", "text", "mp4-header-only"],
+)
+def test_a_file_that_is_no_video_is_reported_once_in_trackfw_words(
+    content: bytes,
+    fragments: list[str],
+    pipeline_file: Callable[..., Path],
+    tmp_path: Path,
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    fake = tmp_path / "clip.mp4"
+    fake.write_bytes(content)
+    output = tmp_path / "out"
+    code = main(["run", str(pipeline_file()), "-i", str(fake), "-o", str(output), "-q"])
+    # capfd sees file descriptor 2, where FFmpeg writes its own "moov atom not found".
+    stderr = capfd.readouterr().err
+    assert_one_error_line(code, stderr, str(fake), *fragments)
+    assert not output.exists()
+
+
+def test_a_fake_video_inside_a_video_folder_with_meta_is_reported_too(
+    pipeline_file: Callable[..., Path],
+    points_video: Callable[..., Path],
+    tmp_path: Path,
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    # meta.json gives the size and the frame count, so nothing used to open the file before the
+    # decoder silently reported every frame as unread.
+    video = points_video()
+    (video / "video.mp4").write_text("not a video\n", encoding="utf-8")
+    output = tmp_path / "out"
+    code = main(["run", str(pipeline_file()), "-i", str(video), "-o", str(output), "-q"])
+    assert_one_error_line(code, capfd.readouterr().err, str(video / "video.mp4"), "not a video")
+    assert not output.exists()
+
+
+def _write_frames(folder: Path, sizes: list[tuple[int, int]], suffix: str = ".jpg") -> list[Path]:
+    import cv2
+    import numpy as np
+
+    folder.mkdir(parents=True)
+    paths = []
+    for index, (width, height) in enumerate(sizes, start=1):
+        path = folder / f"{index:06d}{suffix}"
+        assert cv2.imwrite(str(path), np.full((height, width, 3), 40 * index % 256, np.uint8))
+        paths.append(path)
+    return paths
+
+
+@pytest.mark.parametrize("suffix", [".jpg", ".png", ".bmp"])
+def test_frames_of_mixed_sizes_name_the_first_odd_one_and_the_expected_size(
+    suffix: str,
+    pipeline_file: Callable[..., Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    paths = _write_frames(
+        tmp_path / "clip" / "img1", [(64, 48), (64, 48), (32, 24), (48, 64)], suffix
+    )
+    output = tmp_path / "out"
+    code, stderr = run_cli(
+        capsys, "run", pipeline_file(), "-i", tmp_path / "clip", "-o", output, "-q"
+    )
+    assert_one_error_line(code, stderr, str(paths[2]), "32x24", "expected 64x48", paths[0].name)
+    assert not output.exists()
