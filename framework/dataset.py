@@ -73,15 +73,6 @@ def list_videos(dataset: Path) -> list[Path]:
     return videos
 
 
-def _has_frames(video_dir: Path) -> bool:
-    """True when ``video_dir`` is a video file or a folder with frames (not point-only)."""
-    try:
-        frame_source_path(video_dir)
-    except UserError:
-        return False
-    return True
-
-
 def frame_source_path(video_dir: Path) -> Path:
     """The file or folder holding the frames of a video."""
     if video_dir.is_file():
@@ -140,23 +131,37 @@ def _frame_size(video_dir: Path) -> tuple[int, int, float]:
                 f"{source}: no readable image to take the frame size from; expected frames named"
                 f" like 000001.jpg ({', '.join(IMAGE_SUFFIXES)})."
             )
-        check_frame_sizes(files, image.shape[1], image.shape[0])
+        check_frame_sizes(files)
         return image.shape[1], image.shape[0], 30.0
     info = probe_container(source)
     return info.width, info.height, info.fps
+
+
+def _check_frames(video_dir: Path) -> None:
+    """Probe the frames of a video whose size meta.json gives; point-only videos pass."""
+    from trackfw.video_io import check_frame_sizes, probe_container
+
+    try:
+        source = frame_source_path(video_dir)
+    except UserError:
+        return  # no frames at all: a point-only video
+    if source.is_dir():
+        check_frame_sizes(sorted(c for c in source.iterdir() if c.suffix.lower() in IMAGE_SUFFIXES))
+    else:
+        probe_container(source)
 
 
 def load_video(video_dir: Path) -> VideoContext:
     """Read one video's metadata and ground truth (whatever of it exists)."""
     video_dir = Path(video_dir)
     meta = read_meta(video_dir) if video_dir.is_dir() else {}
-    # The frames are probed even when meta.json gives their size: a file that is no video, or a
-    # folder of frames of mixed sizes, is a one-line error here rather than a run of unread frames.
-    probed = _frame_size(video_dir) if _has_frames(video_dir) or not meta else None
     if {"width", "height"} <= meta.keys():
         width, height, fps = int(meta["width"]), int(meta["height"]), float(meta.get("fps", 30.0))
+        # Probed even so: a file that is no video, or frames of mixed sizes, is a one-line error
+        # here rather than a run of unread frames.
+        _check_frames(video_dir)
     else:
-        width, height, fps = probed if probed is not None else _frame_size(video_dir)
+        width, height, fps = _frame_size(video_dir)
         fps = float(meta.get("fps", fps))
     n_frames = count_frames(video_dir)
     ground_truth: GroundTruth | None = None

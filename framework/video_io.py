@@ -146,23 +146,35 @@ def probe_container(path: Path) -> ContainerInfo:
     return ContainerInfo(width, height, fps if fps > 0 else 30.0, max(n_frames, 0))
 
 
-def check_frame_sizes(files: Sequence[Path], width: int, height: int) -> None:
-    """Every image of a frame folder must be ``width`` x ``height``, like the first one.
+def check_frame_sizes(
+    files: Sequence[Path], width: int | None = None, height: int | None = None
+) -> None:
+    """Every image of a frame folder must have one size: ``width`` x ``height`` or the first's.
 
     Trackers, gap matchers and the run outputs work in one pixel frame per video; a resized
     frame would silently move every point on it. Only the image headers are read (a few bytes
     each), so a folder of thousands of frames is checked in well under a second. An image whose
     header cannot be read is left to the decoder, which reports it as an unreadable frame.
 
+    Args:
+        files: the frame images in frame order.
+        width, height: the expected size; None takes it from the first image with a header.
+
     Raises:
         UserError: naming the first image of another size, its size and the expected one.
     """
+    reference: Path | None = None
     for path in files:
         size = image_size(path)
-        if size is not None and size != (width, height):
+        if size is None:
+            continue
+        if width is None or height is None:
+            (width, height), reference = size, path
+        elif size != (width, height):
+            like = "" if reference is None else f" like {reference.name}"
             raise UserError(
-                f"{path}: frame is {size[0]}x{size[1]}; expected {width}x{height} like"
-                f" {files[0].name} (every frame of a video must have the same size)."
+                f"{path}: frame is {size[0]}x{size[1]}; expected {width}x{height}{like}"
+                " (every frame of a video must have the same size)."
             )
 
 

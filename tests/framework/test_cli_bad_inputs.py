@@ -297,3 +297,17 @@ def test_frames_of_mixed_sizes_name_the_first_odd_one_and_the_expected_size(
     )
     assert_one_error_line(code, stderr, str(paths[2]), "32x24", "expected 64x48", paths[0].name)
     assert not output.exists()
+
+
+def test_frames_of_mixed_sizes_are_refused_when_meta_gives_the_size_too(
+    pipeline_file: Callable[..., Path],
+    points_video: Callable[..., Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    video = points_video()  # meta.json with width, height and n_frames
+    paths = _write_frames(video / "img1", [(64, 48), (64, 40)], ".png")
+    output = tmp_path / "out"
+    code, stderr = run_cli(capsys, "run", pipeline_file(), "-i", video, "-o", output, "-q")
+    assert_one_error_line(code, stderr, str(paths[1]), "64x40", "expected 64x48")
+    assert not output.exists()
