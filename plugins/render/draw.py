@@ -130,9 +130,40 @@ def blank_frame(width: int, height: int) -> Image:
 
 
 def _label(image: Image, text: str, origin: tuple[int, int], scale: float = 0.6) -> None:
-    """White text on a dark outline, readable on any background."""
-    cv2.putText(image, text, origin, TEXT_FONT, scale, (0, 0, 0), 4, cv2.LINE_AA)
-    cv2.putText(image, text, origin, TEXT_FONT, scale, (255, 255, 255), 1, cv2.LINE_AA)
+    """White text on a dark outline, readable on any background; drawn in place.
+
+    The text is drawn once, into a mask, and the outline is that mask dilated. Two ``putText``
+    passes with different thicknesses do not line up: OpenCV 5 makes a glyph's advance depend on
+    the stroke thickness, so a thick outline pass runs ahead of a thin text pass letter by letter.
+
+    Args:
+        image: ``(H, W, 3)`` uint8 BGR.
+        text: the label.
+        origin: ``(x, y)`` of the text's baseline start, as for ``cv2.putText``.
+        scale: the font scale.
+    """
+    (text_width, text_height), baseline = cv2.getTextSize(text, TEXT_FONT, scale, 1)
+    radius = max(1, round(1 + 1.5 * scale))
+    # A margin for the outline and for glyphs that reach past the nominal text box.
+    pad = radius + 2 + round(4 * scale)
+    mask = np.zeros((text_height + baseline + 2 * pad, text_width + 2 * pad), dtype=np.uint8)
+    cv2.putText(mask, text, (pad, pad + text_height), TEXT_FONT, scale, 255, 1, cv2.LINE_AA)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+    outline = cv2.dilate(mask, kernel)
+    # Clip the mask's rectangle to the image.
+    left, top = origin[0] - pad, origin[1] - text_height - pad
+    x0, y0 = max(left, 0), max(top, 0)
+    x1 = min(left + mask.shape[1], image.shape[1])
+    y1 = min(top + mask.shape[0], image.shape[0])
+    if x0 >= x1 or y0 >= y1:
+        return
+    window = (slice(y0 - top, y1 - top), slice(x0 - left, x1 - left))
+    fill_alpha = (mask[window].astype(np.float32) / 255.0)[..., None]
+    outline_alpha = (outline[window].astype(np.float32) / 255.0)[..., None]
+    region = image[y0:y1, x0:x1].astype(np.float32)
+    region *= 1.0 - outline_alpha  # dark outline under the text
+    region = region * (1.0 - fill_alpha) + 255.0 * fill_alpha
+    image[y0:y1, x0:x1] = np.clip(np.round(region), 0, 255).astype(np.uint8)
 
 
 def _segment_start(data: RunData, t: int) -> int:

@@ -10,7 +10,13 @@ import pytest
 
 from trackfw.cli import main
 from trackfw_plugins.datasets.points import make_points_video
-from trackfw_plugins.render.draw import identity_colour, load_run_data
+from trackfw_plugins.render.draw import (
+    RunData,
+    blank_frame,
+    draw_frame,
+    identity_colour,
+    load_run_data,
+)
 
 REPO = Path(__file__).resolve().parents[3]
 
@@ -142,3 +148,31 @@ def test_render_refuses_a_cut_short_frames_csv_like_eval(
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1 and "30 of 60" in error and "'clip'" in error, error
     assert not out.exists()
+
+
+@pytest.mark.parametrize(("width", "height"), [(640, 360), (1920, 1080)])
+def test_labels_outline_surrounds_the_text(tmp_path: Path, width: int, height: int) -> None:
+    """The dark outline and the white text come from the same glyphs (OpenCV 5 garbled them).
+
+    OpenCV 5 draws glyphs whose width depends on the stroke thickness, so an outline drawn with a
+    thick stroke under text drawn with a thin one ran ahead of it, letter by letter.
+    """
+    data = RunData(tmp_path, "clip", None, "kalman1-tr-oracle", 60, 80.0)
+    drawn = draw_frame(blank_frame(width, height), 9, data)
+    grey = drawn.max(axis=2)
+    fill = (grey >= 200).astype(np.uint8)
+    outline = (grey <= 20).astype(np.uint8)
+    assert fill.sum() > 50 and outline.sum() > fill.sum(), "no label drawn"
+    fill_rows, fill_cols = np.nonzero(fill)
+    out_rows, out_cols = np.nonzero(outline)
+    # The outline's box holds the text's box with a thin margin on every side.
+    margins = (
+        fill_cols.min() - out_cols.min(),
+        out_cols.max() - fill_cols.max(),
+        fill_rows.min() - out_rows.min(),
+        out_rows.max() - fill_rows.max(),
+    )
+    assert all(1 <= margin <= 6 for margin in margins), margins
+    # No outline pixel strays from the text: each lies within a few pixels of a white one.
+    distance = cv2.distanceTransform(1 - fill, cv2.DIST_L2, 3)
+    assert distance[outline.astype(bool)].max() <= 8.0
