@@ -1,4 +1,4 @@
-"""Maps the user's folder names to non-generic import names (DESIGN.md section 2).
+"""Maps the user's folder names to non-generic import names (the Layout section of README.md).
 
 ``framework/`` installs as ``trackfw`` and ``plugins/`` as ``trackfw_plugins``. Sub-packages are
 discovered here so that a new plugin folder needs no packaging change.

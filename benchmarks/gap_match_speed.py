@@ -1,4 +1,6 @@
-"""Seconds per gap match of the window-based TPS-RPM association (ALGORITHMS.md §4).
+"""Seconds per gap match of the window-based TPS-RPM association.
+
+See docs/algorithms/gap-matchers.md#window-tps-rpm.
 
 One gap match = build the windows of V once, then associate three candidate predictions U
 (the AR orders 1–3, |U| = 8) with V, and pick the best. Scenes: a group of 8 people after a

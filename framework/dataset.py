@@ -1,4 +1,6 @@
-"""The dataset layout on disk (DESIGN.md section 6): read, validate and write it.
+"""The dataset layout on disk: read, validate and write it.
+
+See docs/algorithms/datasets.md#dataset-layout.
 
 A dataset is a folder of videos; each video is a folder::
 

@@ -1,4 +1,4 @@
-"""The online loop (ALGORITHMS.md section 0), frame by frame.
+"""The online loop (docs/algorithms/index.md#the-online-loop), frame by frame.
 
 For each frame: detect, classify, and then either skip it (info-less), step the segment tracker
 (normal frame after a normal frame), or, on the first normal frame ``b`` after an interval, ask

@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 #: Folders and files whose text may cite the docs.
 SCANNED = ("framework", "plugins", "benchmarks", "tests", "examples", "docs", "pipelines")
-SCANNED_FILES = ("README.md", "pyproject.toml")
+SCANNED_FILES = ("README.md", "pyproject.toml", "setup.py")
 SUFFIXES = {".py", ".md", ".yaml", ".yml", ".toml", ".txt", ".cfg"}
 #: The brief's file names, assembled so that this file does not cite them itself.
 BRIEF_FILES = ("ALGORITHMS" + ".md", "DESIGN" + ".md")
@@ -97,6 +97,36 @@ def test_slug_follows_github() -> None:
     assert slug("Re-initialisation at b") == "re-initialisation-at-b"
     assert slug("CLEAR MOT for points") == "clear-mot-for-points"
     assert slug("Window cost ψ") == "window-cost-ψ"
+
+
+def test_cited_docs_anchors_exist() -> None:
+    problems = []
+    citations = 0
+    for path in _text_files():
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+            for match in CITATION.finditer(line):
+                citations += 1
+                where = f"{path.relative_to(ROOT)}:{number}"
+                problem = _check_target(DOCS / match.group(1), match.group(2), where)
+                if problem:
+                    problems.append(problem)
+    assert citations > 0, "no docs anchor citation found: the scan itself is broken"
+    assert not problems, "\n".join(problems)
+
+
+def test_nothing_cites_the_design_brief() -> None:
+    here = Path(__file__).resolve()
+    offenders = [
+        f"{path.relative_to(ROOT)}:{number}: {line.strip()}"
+        for path in _text_files()
+        if path.resolve() != here
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1)
+        if any(name in line for name in BRIEF_FILES)
+    ]
+    assert not offenders, (
+        "cite the repository's docs (docs/algorithms/*.md#anchor) instead of the design brief:\n"
+        + "\n".join(offenders)
+    )
 
 
 def test_markdown_links_resolve() -> None:

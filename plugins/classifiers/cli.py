@@ -1,4 +1,7 @@
-"""``trackfw train classifier``: train the info-less SVM on a dataset (ALGORITHMS.md §6.3)."""
+"""``trackfw train classifier``: train the info-less SVM on a dataset.
+
+See docs/algorithms/infoless-classifier.md#svm.
+"""
 
 from __future__ import annotations
 

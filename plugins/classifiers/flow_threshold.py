@@ -1,7 +1,8 @@
 """The ``flow-threshold`` classifier: info-less when the camera moves fast (a baseline) [OURS].
 
 Looking away from the group (sky, a building, the path) makes the head-worn camera turn quickly,
-so the mean optical-flow magnitude ``M_t`` (ALGORITHMS.md §6.1) alone already separates many
+so the mean optical-flow magnitude ``M_t``
+(docs/algorithms/infoless-classifier.md#per-frame-measurements) alone already separates many
 info-less frames. A hysteresis keeps the label from flickering: an interval starts when ``M_t``
 rises above ``high`` and ends when it falls below ``low``.
 

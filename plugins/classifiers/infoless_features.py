@@ -1,4 +1,7 @@
-"""The 11-d info-less feature of ALGORITHMS.md §6.1–6.2, computed online, frame by frame.
+"""The 11-d info-less feature, computed online, frame by frame.
+
+See docs/algorithms/infoless-classifier.md#per-frame-measurements and
+docs/algorithms/infoless-classifier.md#feature-vector.
 
 Per frame ``t`` three measurements are taken [PAPER §3.2]:
 
@@ -51,7 +54,7 @@ _DIS_PRESETS: dict[str, int] = {
     "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM,
 }
 
-#: Farnebäck settings of ALGORITHMS.md §6.1 [OURS; ORIG: Farnebäck 2003]:
+#: Farnebäck settings [OURS; ORIG: Farnebäck 2003]:
 #: pyr_scale, levels, winsize, iterations, poly_n, poly_sigma, flags.
 FARNEBACK_SETTINGS = (0.5, 3, 15, 3, 5, 1.2, 0)
 
@@ -72,7 +75,7 @@ def spread(points: FloatArray) -> float:
 
 
 def relative_change(spread_t: float, spread_a: float, c_max: float = DEFAULT_C_MAX) -> float:
-    """``C_t = |S_t - S_a| / S_a`` (Eq. 1), clipped to ``c_max``; the S_a = 0 rules of §6.1.
+    """``C_t = |S_t - S_a| / S_a`` (Eq. 1), clipped to ``c_max``; the S_a = 0 rules are ours.
 
     >>> relative_change(3.0, 2.0)
     0.5
@@ -110,7 +113,7 @@ class OpticalFlowMeter:
     The previous frame is kept already converted and resized, so each frame is converted once.
 
     Args:
-        method: ``"dis"`` (OpenCV DIS flow, fast) or ``"farneback"`` (§6.1 settings).
+        method: ``"dis"`` (OpenCV DIS flow, fast) or ``"farneback"`` (``FARNEBACK_SETTINGS``).
         width: working width in pixels.
         dis_preset: DIS preset (ignored by Farnebäck).
     """
@@ -164,7 +167,7 @@ class OpticalFlowMeter:
 
 
 class FeatureAssembler:
-    """The recursion of §6.1–6.2 from measurements to the 11-d feature.
+    """The recursion from measurements to the 11-d feature.
 
     Call :meth:`push` for frames in order, and :meth:`mark_informative` with the decision of the
     latest pushed frame before pushing the next. The first frame after :meth:`reset` is the
@@ -198,7 +201,7 @@ class FeatureAssembler:
                 f"frames must come in increasing order: got {t} after {self._latest_t}"
             )
         if self._latest_t is None:
-            # Warm-up [OURS §6.2]: the missing history repeats the earliest value.
+            # Warm-up [OURS]: the missing history repeats the earliest value.
             self._motion.extend([float(motion)] * HISTORY)
             self._counts.extend([float(count)] * HISTORY)
             change = 0.0
@@ -248,7 +251,7 @@ def assemble_features(
     informative: NDArray[np.bool_],
     c_max: float = DEFAULT_C_MAX,
 ) -> FloatArray:
-    """Features of a whole video with known decisions (training uses the ground truth, §6.3).
+    """Features of a whole video with known decisions (training uses the ground truth).
 
     Args:
         motion: ``(T,)`` ``M_t``.

@@ -1,4 +1,6 @@
-"""Online decision rules of the info-less SVM [OURS; ALGORITHMS.md §6.4 leaves them open].
+"""Online decision rules of the info-less SVM [OURS; the paper leaves them open].
+
+See docs/algorithms/infoless-classifier.md#online-rules.
 
 The paper labels frame ``t`` info-less when the SVM says so, and the reference frame ``a`` of
 ``C_t`` is the most recent informative frame. Replayed online, this recursion has two weak

@@ -1,6 +1,7 @@
 """The ``oracle`` classifier: ground-truth info-less intervals.
 
-Isolates tracking from interval recognition (``interval_source = gt`` in ALGORITHMS.md 6.4).
+Isolates tracking from interval recognition; see
+docs/algorithms/infoless-classifier.md#oracle-classifier.
 """
 
 from __future__ import annotations

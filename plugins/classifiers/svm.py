@@ -1,4 +1,7 @@
-"""The ``svm`` classifier: the paper's 11-d feature and RBF SVM (ALGORITHMS.md §6) [PAPER §3.2].
+"""The ``svm`` classifier: the paper's 11-d feature and RBF SVM [PAPER §3.2].
+
+See docs/algorithms/infoless-classifier.md#svm and
+docs/algorithms/infoless-classifier.md#online-rules.
 
 Each frame, the classifier measures ``M_t``, ``N_t`` and ``S_t``, builds ``x_t`` and maps the SVM's
 decision value through the Platt sigmoid stored in the model to a probability. The online rules
@@ -6,7 +9,7 @@ of :mod:`online_rules` [OURS] turn it into a label: with the paper's rules (a mo
 none) the frame is info-less when the probability reaches ``threshold`` (0.5); a model may
 record hysteresis, re-anchoring of ``C_t``'s reference and a turn latch, which the stage then
 applies by default (each can be overridden by a parameter). It only labels frames: turning labels
-into intervals (§6.4) is the engine's job. The reference frame ``a`` of ``C_t`` follows the
+into intervals is the engine's job. The reference frame ``a`` of ``C_t`` follows the
 decisions, which are the engine's: the first frame (``frame.first``) is informative, whatever the
 SVM says, as the engine has it.
 

@@ -1,6 +1,7 @@
 """The info-less SVM as a JSON file: no pickle, no scikit-learn needed at inference.
 
-A model is ``StandardScaler`` followed by a binary RBF ``SVC`` (ALGORITHMS.md §6.3) plus a Platt
+A model is ``StandardScaler`` followed by a binary RBF ``SVC``
+(docs/algorithms/infoless-classifier.md#svm) plus a Platt
 sigmoid that maps the decision value to a probability. The file stores exactly what the
 decision function needs::
 

@@ -1,4 +1,6 @@
-"""Training and evaluating the info-less SVM (ALGORITHMS.md §6.3) on a dataset.
+"""Training and evaluating the info-less SVM on a dataset.
+
+See docs/algorithms/infoless-classifier.md#svm.
 
 Three steps, each usable on its own:
 
@@ -6,7 +8,7 @@ Three steps, each usable on its own:
    per-frame measurements ``M_t``, ``N_t``, ``S_t`` with the ground-truth labels (cached as NPZ,
    since decoding and flow dominate the cost).
 2. :func:`fit_model` builds the training features with the reference frame of ``C_t`` taken from
-   the ground truth [OURS §6.3], fits ``StandardScaler`` + RBF ``SVC`` (optionally a grid search,
+   the ground truth [OURS], fits ``StandardScaler`` + RBF ``SVC`` (optionally a grid search,
    ``GroupKFold`` by video), fits the Platt sigmoid on out-of-fold decision values and
    cross-validates precision, recall and F1.
 3. :func:`classify_online` replays a video frame by frame with the classifier's own decisions
@@ -39,7 +41,7 @@ from trackfw_plugins.classifiers.svm_model import SvmModel, fit_platt, platt_pro
 #: Where the reference frame of C_t comes from in training (see :func:`fit_model`).
 Reference = Literal["gt", "replay"]
 
-#: The grid of ALGORITHMS.md §6.3.
+#: The search grid of docs/algorithms/infoless-classifier.md#svm.
 GRID_C = (0.1, 1.0, 10.0, 100.0)
 GRID_GAMMA: tuple[str | float, ...] = ("scale", 0.01, 0.1, 1.0)
 
@@ -158,11 +160,11 @@ def fit_model(
     Args:
         videos: measurements of the training videos (at least one frame of each class).
         settings: the feature settings (recorded in the model).
-        grid: search C and gamma on the §6.3 grid by grouped cross-validation (F1).
+        grid: search C and gamma on ``GRID_C`` x ``GRID_GAMMA`` by grouped cross-validation (F1).
         seed: shuffles the video folds.
         C, gamma: the SVM's settings without a grid search.
-        reference: ``"gt"``: the reference frame of ``C_t`` comes from the ground truth
-            (§6.3). ``"replay"``: in addition, every training video is replayed online by a
+        reference: ``"gt"``: the reference frame of ``C_t`` comes from the ground truth.
+            ``"replay"``: in addition, every training video is replayed online by a
             model trained without it, and the features it then saw (its own decisions choosing
             the reference) are added with their true labels. This teaches the SVM the states
             the recursion reaches after its own mistakes (one round of DAgger; Ross et al.
@@ -171,7 +173,7 @@ def fit_model(
         log: receives progress lines.
         rules: the online rules the replay applies (None: the plain 0.5 decision); the model
             records them and the ``svm`` stage then applies them by default.
-        class_weight: the SVC's class weights: ``"balanced"`` (§6.3) or None (equal) [OURS].
+        class_weight: the SVC's class weights: ``"balanced"`` (the default) or None (equal) [OURS].
 
     Returns:
         The model and the report with cross-validated (out-of-fold) frame scores on the

@@ -1,4 +1,6 @@
-"""EdgeBoxes object proposals on an edge map made without the structured-edge model (ALGORITHMS.md §7.1).
+"""EdgeBoxes object proposals on an edge map made without the structured-edge model.
+
+See docs/algorithms/detectors.md#edge-map.
 
 OpenCV's ``cv2.ximgproc.createEdgeBoxes`` needs a thinned edge map in [0, 1] and an orientation
 map in [0, π). The structured-edge (SED) model that normally provides both is not shipped with the

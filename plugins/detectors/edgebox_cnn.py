@@ -1,4 +1,6 @@
-"""The reference head detector: EdgeBoxes proposals scored by a small CNN (ALGORITHMS.md §7).
+"""The reference head detector: EdgeBoxes proposals scored by a small CNN.
+
+See docs/algorithms/detectors.md#edgeboxes-cnn.
 
 Pipeline per frame: EdgeBoxes on the frame reduced to ``work_width`` (plus, [OURS], DoG blob
 proposals, see :mod:`.blob_proposals`) → keep head-sized boxes → grow by R-CNN context, warp to

@@ -1,4 +1,6 @@
-"""Scores head candidates with an ONNX classifier through onnxruntime (ALGORITHMS.md §7.2).
+"""Scores head candidates with an ONNX classifier through onnxruntime.
+
+See docs/algorithms/detectors.md#cnn-scoring.
 
 R-CNN style: each box is grown by a context margin, cut out of the frame (replicating the border),
 warped to the network's input size and scored in batches. The network's input size, channel order,

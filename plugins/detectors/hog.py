@@ -1,4 +1,6 @@
-"""The ``hog`` detector: OpenCV's HOG people detector, head point taken from the body box (§7.2b).
+"""The ``hog`` detector: OpenCV's HOG people detector, head point taken from the body box.
+
+See docs/algorithms/detectors.md#hog-people-detector.
 
 Dalal-Triggs HOG with OpenCV's default linear SVM for 64×128 pedestrians. The head point of a
 body box follows the project's head-point rule (:mod:`trackfw.formats.head_point`,

@@ -1,4 +1,6 @@
-"""The ``mot-file`` detector: precomputed detections in MOTChallenge det.txt format (§7.2c).
+"""The ``mot-file`` detector: precomputed detections in MOTChallenge det.txt format.
+
+See docs/algorithms/detectors.md#mot-file.
 
 Rows are ``frame,id,left,top,width,height,score,...`` with 1-based frames, read by
 :func:`trackfw.formats.read_mot_detections`. The file path is a

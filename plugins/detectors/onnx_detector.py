@@ -1,4 +1,6 @@
-"""The ``onnx`` detector: a user's own ONNX detection model, with configurable decoding (§7.2d).
+"""The ``onnx`` detector: a user's own ONNX detection model, with configurable decoding.
+
+See docs/algorithms/detectors.md#onnx-detector.
 
 The frame is resized (stretched or letterboxed) to the model's input, scaled, normalised and laid
 out as NCHW or NHWC. Outputs are decoded as one of:

@@ -1,4 +1,6 @@
-"""CLEAR MOT for point or box targets (ALGORITHMS.md section 9; Bernardin & Stiefelhagen 2008).
+"""CLEAR MOT for point or box targets (Bernardin & Stiefelhagen 2008).
+
+See docs/algorithms/evaluation.md#clear-mot-for-points.
 
 The metrics core works on plain arrays, independent of any file format. A sequence is a list of
 :class:`FrameObservations`, one per evaluated frame (the union of frames with ground truth and
@@ -28,7 +30,7 @@ from trackfw_plugins.maths.assignment import distance_matrix, hungarian
 
 Geometry = Literal["point", "box"]
 
-#: Default match threshold in point mode [OURS, ALGORITHMS.md section 9: ``mot_dist_px``].
+#: Default match threshold in point mode [OURS: ``mot_dist_px``].
 DEFAULT_POINT_THRESHOLD_PX = 40.0
 #: Default threshold on ``1 - IoU`` in box mode (py-motmetrics' ``distth``).
 DEFAULT_BOX_THRESHOLD = 0.5

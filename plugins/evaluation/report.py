@@ -1,6 +1,6 @@
 """Evaluate a dataset against a runs folder: per-video rows, the mean over videos, pooled totals.
 
-Conventions (ALGORITHMS.md section 9):
+Conventions (docs/algorithms/evaluation.md#objects-and-hypotheses):
 
 * Objects are the ground-truth people of interest on non-info-less frames; hypotheses are the
   box centres of tracks.txt. Frames are the union of both sides' frames, so hypotheses on
@@ -66,7 +66,7 @@ class EvalSettings:
     Attributes:
         distance_px: CLEAR MOT / IDF1 match threshold τ in pixels [OURS: ``mot_dist_px`` = 40].
         sensitivity_px: extra thresholds at which MOTA, MOTP and their -In variants are reported
-            (section 9 asks for 20 and 60 on request).
+            (``trackfw eval --sensitivity`` asks for 20 and 60).
         detections: also score the head detections of frames.csv against heads.csv.
         detection_distance_px: detection match distance; default ``distance_px``.
         hota_zero_distance_px: HOTA point similarity reaches 0 here; default ``2 * distance_px``.

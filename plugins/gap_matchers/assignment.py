@@ -3,7 +3,7 @@
 The Kalman1/Kalman2 baselines of the paper (section 4.2): predict every target to frame b (TR or
 AR), then associate predictions and detections with the same routine as inside segments. With
 several candidate predictions (AR orders), the one with the smallest mean assigned distance wins
-(ALGORITHMS.md 1.5).
+(docs/algorithms/gap-matchers.md#assignment).
 """
 
 from __future__ import annotations

@@ -3,7 +3,8 @@
 The paper's re-ID baselines track inside segments like the proposed method and, on frame b,
 match targets to detections by descriptor distance. Each target's descriptor comes from its
 crop at its tracked position on frame a, each detection's from its crop on frame b; the
-training-free distance (pooled mean subtraction, L2, Euclidean; ALGORITHMS.md 8.1-8.2) feeds a
+training-free distance (pooled mean subtraction, L2, Euclidean;
+docs/algorithms/gap-matchers.md#re-identification) feeds a
 Hungarian assignment. Targets left without a detection are placed at the predictor's position.
 
 ``descriptor: person-reid`` [OURS] uses a pretrained deep embedder instead

@@ -1,9 +1,9 @@
 """The ``tps-rpm`` gap matcher: plain TPS-RPM between all predictions and all detections.
 
 The ablation of the proposed method without windows (and the Kalman3 baseline at frame b,
-ALGORITHMS.md 1.6): one TPS-RPM run registers the predicted pattern U onto every detection on
-frame b. With several candidate predictions (AR orders) the one with the smallest
-psi = bending + lambda1 * unmatched wins. Unmatched targets are placed by the TPS map.
+docs/algorithms/gap-matchers.md#plain-tps-rpm): one TPS-RPM run registers the predicted pattern U
+onto every detection on frame b. With several candidate predictions (AR orders) the one with the
+smallest psi = bending + lambda1 * unmatched wins. Unmatched targets are placed by the TPS map.
 """
 
 from __future__ import annotations
@@ -19,7 +19,8 @@ from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 
 def _kalman3_rpm() -> TpsRpmSettings:
     # Both sets live in one image frame, so one similarity computed from U is applied to both
-    # (ALGORITHMS.md 1.6); float32 halves the time with the same matches.
+    # (docs/algorithms/tps-rpm.md#coordinate-normalisation); float32 halves the time with the same
+    # matches.
     return TpsRpmSettings(normalisation="template", precision="float32")
 
 
@@ -27,7 +28,8 @@ class TpsRpmGapParams(StageParams):
     """Parameters of the plain TPS-RPM gap matcher."""
 
     rpm: TpsRpmSettings = Field(
-        default_factory=_kalman3_rpm, description="TPS-RPM settings (ALGORITHMS.md 3.3)"
+        default_factory=_kalman3_rpm,
+        description="TPS-RPM settings (docs/algorithms/tps-rpm.md#parameters)",
     )
     lambda1: float = Field(
         1.0, ge=0, description="weight of the unmatched count when choosing among predictions"

@@ -40,10 +40,14 @@ def _fast_rpm() -> TpsRpmSettings:
 
 
 class WindowTpsRpmParams(StageParams, WindowAssociationParams):
-    """Parameters of the window-based TPS-RPM gap matcher (ALGORITHMS.md 4, 5, 10)."""
+    """Parameters of the window-based TPS-RPM gap matcher.
+
+    See docs/algorithms/gap-matchers.md#parameters.
+    """
 
     rpm: TpsRpmSettings = Field(
-        default_factory=_fast_rpm, description="TPS-RPM settings (ALGORITHMS.md 3.3)"
+        default_factory=_fast_rpm,
+        description="TPS-RPM settings (docs/algorithms/tps-rpm.md#parameters)",
     )
     patch_at_1080: float = Field(
         80.0,

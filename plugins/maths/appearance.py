@@ -1,4 +1,6 @@
-"""Appearance descriptors for the E_a term of the window cost (ALGORITHMS.md §5).
+"""Appearance descriptors for the E_a term of the window cost.
+
+See docs/algorithms/gap-matchers.md#appearance-term.
 
 An 80×80 patch around each point is described by four groups: mean RGB (3), mean HSV (3), the
 uniform LBP histogram (59) and HOG (2916). Each group is L2-normalised, the groups are concatenated
@@ -22,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from trackfw.arrays import FloatArray, UInt8Array
 
-#: Paper patch size (§5): 80×80 pixels.
+#: Paper patch size: 80×80 pixels.
 PATCH_SIZE = 80
 LBP_NEIGHBOURS = 8
 LBP_RADIUS = 1.0
@@ -50,7 +52,7 @@ def crop_replicate(
 def extract_patch(
     image: UInt8Array, point: ArrayLike, patch_size: int = PATCH_SIZE, scale: float = 1.0
 ) -> UInt8Array:
-    """Square patch centred on ``point``, with replicated borders (§5).
+    """Square patch centred on ``point``, with replicated borders.
 
     Args:
         image: ``(H, W, C)`` or ``(H, W)`` pixels.
@@ -192,7 +194,7 @@ def patch_descriptor(patch: UInt8Array) -> FloatArray:
 def appearance_descriptors(
     image: UInt8Array, points: ArrayLike, patch_size: int = PATCH_SIZE, scale: float = 1.0
 ) -> FloatArray:
-    """Descriptors of the patches centred on ``points`` (§5).
+    """Descriptors of the patches centred on ``points``.
 
     Args:
         image: ``(H, W, 3)`` uint8 BGR frame.

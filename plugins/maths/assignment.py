@@ -1,4 +1,8 @@
-"""Point-to-point association: gated Hungarian and greedy nearest neighbour (ALGORITHMS.md 1.3-1.4)."""
+"""Point-to-point association: gated Hungarian and greedy nearest neighbour.
+
+See docs/algorithms/segment-tracker.md#hungarian-association and
+docs/algorithms/segment-tracker.md#nearest-neighbour-association.
+"""
 
 from __future__ import annotations
 
@@ -27,7 +31,7 @@ def hungarian(cost: FloatArray, gate: float | None = None) -> IntArray:
     """Optimal one-to-one assignment; returns ``(K,)`` column per row, ``-1`` when unassigned.
 
     Entries above ``gate`` are set to a large constant before solving and any pair that still
-    lands on one is dropped, as section 1.3 prescribes.
+    lands on one is dropped.
 
     >>> hungarian(np.array([[1.0, 9.0], [2.0, 3.0]])).tolist()
     [0, 1]

@@ -1,4 +1,6 @@
-"""Per-coordinate autoregressive (AR) prediction across an info-less interval (ALGORITHMS.md §2).
+"""Per-coordinate autoregressive (AR) prediction across an info-less interval.
+
+See docs/algorithms/predictors.md#ar-predictor.
 
 Each image coordinate is modelled on its own. By default the model runs on frame-to-frame
 displacements (an ARIMA(k,1,0) with drift), because an AR fitted on trending positions sits next to
@@ -34,7 +36,7 @@ CONSTANT_VELOCITY_WINDOW = 5
 
 @dataclass(frozen=True)
 class ArSettings:
-    """Fit and forecast settings; the defaults are those of ALGORITHMS.md §10 (``ar:``).
+    """Fit and forecast settings; the defaults of docs/algorithms/predictors.md#parameters.
 
     Attributes:
         series: ``"displacement"`` (model δ_t = z_t − z_{t−1}) or ``"position"`` (model z_t,
@@ -129,7 +131,9 @@ def companion_spectral_radius(coefficients: ArrayLike) -> float:
 def stabilise(
     coefficients: ArrayLike, stability_rho: float = 0.99, shrink_to: float = 0.95
 ) -> tuple[FloatArray, float, bool]:
-    """Stability guard of §2.3: scale every root by α = shrink_to/ρ when ρ ≥ stability_rho.
+    """Stability guard: scale every root by α = shrink_to/ρ when ρ ≥ stability_rho.
+
+    See docs/algorithms/predictors.md#stability-guard.
 
     φ_i ← α^i φ_i maps each root r of z^k − Σ φ_i z^{k−i} to α·r.
 
@@ -158,7 +162,7 @@ def fit_ar(
     stability_rho: float = 0.99,
     shrink_to: float = 0.95,
 ) -> ArModel | None:
-    """Conditional least-squares AR(k) with intercept on a univariate series (§2.2).
+    """Conditional least-squares AR(k) with intercept on a univariate series.
 
     One equation per t = k+1..L (1-based): x_t = c + Σ φ_i x_{t−i}, so m = L − k equations.
     The ridge λ = ridge·trace(XᵀX)/(k+1) is added on φ only, as extra rows √λ·e_i of the
@@ -202,7 +206,7 @@ def fit_ar(
 
 
 def forecast_series(model: ArModel, series: ArrayLike, steps: int) -> FloatArray:
-    """Recursive multi-step forecast (§2.4): feed forecasts back where observations run out.
+    """Recursive multi-step forecast: feed forecasts back where observations run out.
 
     Args:
         model: the fitted model.
@@ -255,16 +259,16 @@ def forecast_ar(
     horizon: int,
     settings: ArSettings | None = None,
 ) -> ArForecast:
-    """Forecast one target's position ``horizon`` frames after its last observation (§2).
+    """Forecast one target's position ``horizon`` frames after its last observation.
 
-    Fallbacks (§2.2): the largest feasible order k' < k, then constant velocity (mean of the last
+    Fallbacks: the largest feasible order k' < k, then constant velocity (mean of the last
     min(n−1, 5) displacements), then constant position when n = 1.
 
     Args:
         history: ``(n, 2)`` positions, oldest first, ending at frame a (n ≥ 1).
         order: the requested AR order k ≥ 1.
         horizon: h = b − a ≥ 0.
-        settings: fit settings; defaults of §10 when None.
+        settings: fit settings; the defaults when None.
 
     Returns:
         The forecast, with the order used and the fallback taken.

@@ -1,4 +1,4 @@
-"""Candidate windows of a detection set (ALGORITHMS.md §4.1-§4.2).
+"""Candidate windows of a detection set (docs/algorithms/gap-matchers.md#candidate-windows).
 
 Every 4-subset of V spans an inclusive bounding box whose members form a window W; windows are
 deduplicated (bitmasks) and kept when ceil(0.9K) <= |W| <= floor(1.2K). They depend only on V
@@ -21,14 +21,14 @@ _COMBINATION_CHUNK = 200_000
 
 
 class WindowSettings(BaseModel):
-    """How candidate windows are enumerated and size-filtered (§4.1-§4.2, §10 ``window``)."""
+    """How candidate windows are enumerated and size-filtered."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     subset_points: int = Field(4, ge=1, description="Points of V that span a candidate window.")
     size_lo: float = Field(0.9, gt=0, description="Keep W when |W| >= ceil(size_lo * |U|).")
     size_hi: float = Field(1.2, gt=0, description="Keep W when |W| <= floor(size_hi * |U|).")
-    small_U_exhaustive_max: int = Field(  # noqa: N815 - the config key of §10
+    small_U_exhaustive_max: int = Field(  # noqa: N815 - the documented YAML key
         5000, ge=0, description="When |U| or |V| < 4: all |U|-subsets if C(|V|,|U|) <= this."
     )
 
@@ -42,7 +42,7 @@ class WindowSet:
         total: number of boxes enumerated (C(N, subset_points), or C(N, K) in the small case).
         after_dedup: distinct membership sets.
         after_size: windows left after the size prescreen (= W).
-        rule: "boxes", "small_subsets" or "all_detections" (§4.2 small-set rule).
+        rule: "boxes", "small_subsets" or "all_detections" (the small-set rule).
     """
 
     members: BoolArray
@@ -85,7 +85,7 @@ def _unique_rows(keys: NDArray[np.uint8]) -> IntArray:
 def build_windows(
     detections: FloatArray, template_size: int, params: WindowSettings | None = None
 ) -> WindowSet:
-    """All candidate windows of V for |U| = template_size (§4.1–§4.2), shared by all candidates.
+    """All candidate windows of V for |U| = template_size, shared by all candidates.
 
     Args:
         detections: (N, 2) detection points V.
@@ -134,7 +134,7 @@ def build_windows(
 
 
 def _small_windows(count: int, template_size: int, params: WindowSettings) -> WindowSet:
-    """§4.2 [OURS]: all |U|-subsets when C(N, K) is small, otherwise the single window W = V."""
+    """[OURS] All |U|-subsets when C(N, K) is small, otherwise the single window W = V."""
     possible = math.comb(count, template_size) if 0 < template_size <= count else 0
     if 0 < possible <= params.small_U_exhaustive_max:
         combos = _combinations(count, template_size)

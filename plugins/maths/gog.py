@@ -1,4 +1,6 @@
-"""GOG re-identification descriptor (Matsukawa et al., CVPR 2016; ALGORITHMS.md §8.2).
+"""GOG re-identification descriptor (Matsukawa et al., CVPR 2016).
+
+See docs/algorithms/gap-matchers.md#gog.
 
 Gaussian of Gaussian: every k×k patch (k = 5, every p = 2 pixels) is summarised by the Gaussian of
 its pixel features, embedded as an SPD matrix, mapped to a vector by the matrix log and
@@ -88,7 +90,7 @@ def gaussian_embedding_log(means: FloatArray, covariances: FloatArray) -> FloatA
 
 
 def pixel_features(image_rgb: NDArray[np.uint8], colour_space: str = "rgb") -> FloatArray:
-    """Per-pixel features f = [y/H, M₀°, M₉₀°, M₁₈₀°, M₂₇₀°, colour] (§8.2 step 1).
+    """Per-pixel features f = [y/H, M₀°, M₉₀°, M₁₈₀°, M₂₇₀°, colour] (step 1).
 
     Args:
         image_rgb: ``(H, W, 3)`` uint8 RGB.
@@ -101,7 +103,7 @@ def pixel_features(image_rgb: NDArray[np.uint8], colour_space: str = "rgb") -> F
     height, width = image.shape[:2]
     values = image.astype(np.float64)
     red, green, blue = values[..., 0], values[..., 1], values[..., 2]
-    # MATLAB rgb2ycbcr luminance for 8-bit input, in [16, 235]; mapping as specified in §8.2.
+    # MATLAB rgb2ycbcr luminance for 8-bit input, in [16, 235]; mapping (Y − 16) / 235.
     luminance = 16.0 + (65.481 * red + 128.553 * green + 24.966 * blue) / 255.0
     luminance = (luminance - 16.0) / 235.0
     padded = np.pad(luminance, 1, mode="edge")
@@ -148,7 +150,7 @@ def patch_gaussians(
     step: int = PATCH_STEP,
     epsilon: float = EPSILON,
 ) -> FloatArray:
-    """Patch-level Gaussians, embedded and half-vectorised (§8.2 step 2).
+    """Patch-level Gaussians, embedded and half-vectorised (step 2).
 
     Window sums of f and of the upper triangle of ffᵀ come from separable running sums (an
     integral image evaluated only at the patch rows), so the cost does not grow with k.
@@ -202,7 +204,7 @@ def region_gaussians(
     patch_vectors: FloatArray, num_regions: int = NUM_REGIONS, epsilon: float = EPSILON,
     weighted: bool = True,
 ) -> FloatArray:
-    """Region-level Gaussians over overlapping horizontal strips (§8.2 step 3).
+    """Region-level Gaussians over overlapping horizontal strips (step 3).
 
     Strips are 2·H₀/(G+1) patch rows tall with half-strip steps (16 rows with step 8 on the
     64×24 grid). Patch columns are weighted by N(x; W₀/2, W₀/4), x = 1..W₀.
@@ -278,7 +280,7 @@ def gog_block_sizes() -> tuple[int, ...]:
 def gog_descriptor(
     image_bgr: NDArray[np.uint8], colour_spaces: Sequence[str] = COLOUR_SPACES
 ) -> FloatArray:
-    """Raw fused GOG descriptor of one crop (§8.2).
+    """Raw fused GOG descriptor of one crop.
 
     Args:
         image_bgr: ``(H, W, 3)`` uint8 BGR crop, normally 128×48.
@@ -309,7 +311,7 @@ def normalise_gog(
     descriptors: ArrayLike, mean: ArrayLike | None = None,
     block_sizes: Sequence[int] | None = None,
 ) -> FloatArray:
-    """Per colour space: subtract the mean, then L2-normalise (§8.2 step 4).
+    """Per colour space: subtract the mean, then L2-normalise (step 4).
 
     Args:
         descriptors: ``(P, D)`` raw fused descriptors.

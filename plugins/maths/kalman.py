@@ -1,8 +1,10 @@
-"""Constant-velocity Kalman filter for point targets (ALGORITHMS.md section 1).
+"""Constant-velocity Kalman filter for point targets.
+
+See docs/algorithms/segment-tracker.md#kalman-model.
 
 The state of one target is ``s = (x, y, vx, vy)``; the observation is the head centre ``(x, y)``.
 The filter is batched over targets: means are ``(K, 4)`` and covariances ``(K, 4, 4)``.
-P0, Q and R are the paper's (section 1.1); the correction uses the Joseph form for numerical safety.
+P0, Q and R are the paper's; the correction uses the Joseph form for numerical safety.
 """
 
 from __future__ import annotations
@@ -104,7 +106,7 @@ class KalmanBank:
     def correct(self, target_indices: NDArray[np.int64], observations: FloatArray) -> None:
         """Correct the filters ``target_indices`` with ``(M, 2)`` observed positions.
 
-        Targets not listed keep their prediction (section 1.2).
+        Targets not listed keep their prediction.
         """
         if len(target_indices) == 0:
             return

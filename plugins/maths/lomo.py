@@ -1,4 +1,4 @@
-"""LOMO re-identification descriptor (Liao et al., CVPR 2015; ALGORITHMS.md §8.1).
+"""LOMO re-identification descriptor (Liao et al., CVPR 2015; docs/algorithms/gap-matchers.md#lomo).
 
 Local Maximal Occurrence: joint HSV (8×8×8) and SILTP (τ = 0.3, R ∈ {3, 5}, 4 neighbours)
 histograms of 10×10 windows with step 5; for every row of windows the bin-wise maximum over the
@@ -7,7 +7,7 @@ of the HSV block and of each SILTP block. A 128×48 input gives 24 + 11 + 5 = 40
 per code map: 40·512 + 2·40·81 = 26960 values.
 
 The Retinex step of the authors is only available as a binary, so :func:`retinex` is the
-stand-in of §8.1 (multi-scale Retinex with colour restoration and a 1% simplest colour balance).
+stand-in (multi-scale Retinex with colour restoration and a 1% simplest colour balance).
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def rgb_to_hsv(rgb: ArrayLike) -> FloatArray:
 
 
 def retinex(image_rgb: NDArray[np.uint8]) -> FloatArray:
-    """Multi-scale Retinex with colour restoration, the §8.1 stand-in for the authors' MEX.
+    """Multi-scale Retinex with colour restoration, our stand-in for the authors' MEX.
 
     R_c = mean_σ(log(I_c+1) − log(G_σ∗I_c + 1)), σ ∈ {5, 20}; then
     R_c ← R_c·β·(log(α(I_c+1)) − log Σ_c(I_c+1)); then each channel is stretched to [0, 255]
@@ -212,7 +212,7 @@ def lomo_siltp_block(
 
 
 def lomo_descriptor(image_bgr: NDArray[np.uint8]) -> FloatArray:
-    """LOMO descriptor of one crop (§8.1).
+    """LOMO descriptor of one crop.
 
     Args:
         image_bgr: ``(H, W, 3)`` uint8 BGR crop, normally 128×48.

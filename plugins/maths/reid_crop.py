@@ -1,4 +1,6 @@
-"""Crops and distances for the LOMO / GOG re-ID baselines (ALGORITHMS.md §8, §8.3).
+"""Crops and distances for the LOMO / GOG re-ID baselines.
+
+See docs/algorithms/gap-matchers.md#re-identification.
 
 Re-ID descriptors expect a full-body box, but the tracker only knows a head point. The body crop
 [x − 0.75s, y − 0.5s, 1.5s × 4s] with s = 80·H/1080 is resized to 128×48 (height × width); the
@@ -64,7 +66,7 @@ def crop_box(
 def reid_crop(
     image: NDArray[np.uint8], head_point: ArrayLike, mode: CropMode = "body"
 ) -> NDArray[np.uint8]:
-    """Re-ID input crop around a head point (§8).
+    """Re-ID input crop around a head point.
 
     Args:
         image: ``(H, W, 3)`` uint8 BGR frame.
@@ -102,7 +104,7 @@ def reid_crops(
 def normalise_pooled(
     query: ArrayLike, gallery: ArrayLike, block_sizes: Sequence[int] | None = None
 ) -> tuple[FloatArray, FloatArray]:
-    """Subtract the mean of the pooled query + gallery descriptors, then L2 per block (§8.1, §8.2).
+    """Subtract the mean of the pooled query + gallery descriptors, then L2 per block.
 
     Args:
         query: ``(K, D)`` descriptors (targets at a).
@@ -154,7 +156,7 @@ def reid_distance_matrix(
 
 @dataclass(frozen=True)
 class XqdaModel:
-    """XQDA metric learned on labelled descriptors (§8.3).
+    """XQDA metric learned on labelled descriptors (docs/algorithms/gap-matchers.md#xqda).
 
     Attributes:
         mean: ``(D,)`` centring used before the PCA.
@@ -179,7 +181,7 @@ class XqdaModel:
 def fit_xqda(
     features: ArrayLike, labels: ArrayLike, max_pca: int = 100, regulariser: float = 0.001
 ) -> XqdaModel | None:
-    """Self-trained XQDA (§8.3): positives share a label, negatives do not.
+    """Self-trained XQDA: positives share a label, negatives do not.
 
     Args:
         features: ``(n, D)`` descriptors (for example each track at several frames).

@@ -1,4 +1,6 @@
-"""Shape distance Δ ∈ [0, 1] between the convex hulls of two point sets (ALGORITHMS.md §4.3).
+"""Shape distance Δ ∈ [0, 1] between the convex hulls of two point sets.
+
+See docs/algorithms/gap-matchers.md#hull-shape-distance.
 
 Default ``"shape_context"`` (Belongie, Malik & Puzicha 2002): both hull boundaries are resampled
 to 32 points by arc length, every sample gets a 5 × 12 log-polar histogram of the others, the χ²
@@ -29,7 +31,7 @@ _CHUNK = 64
 
 
 class ShapeDistanceSettings(BaseModel):
-    """Parameters of Δ (§4.3, §10 ``shape_distance``)."""
+    """Parameters of Δ (``shape`` of the window association)."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 

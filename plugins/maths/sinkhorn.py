@@ -1,4 +1,6 @@
-"""Batched Sinkhorn normalisation with constant outlier slack (TPS-RPM's softassign, §3.4).
+"""Batched Sinkhorn normalisation with constant outlier slack (TPS-RPM's softassign).
+
+See docs/algorithms/tps-rpm.md#algorithm.
 
 The correspondence of each data set is kept as scaling vectors, ``H = diag(a) E diag(b)``, over
 affinities E of shape (K, N, B) with the batch innermost. Every data set stops by the authors'

@@ -3,7 +3,7 @@
 The conventions follow Chui & Rangarajan's RPM demo (``ctps_gen.m``): the kernel is
 ``Φ(r) = ½ r² log r² = r² log r`` with ``Φ(0) = 0``; a spline maps a point ``u`` to
 ``[1, u] d + Φ(u, U) c`` with ``d`` (3, 3) the affine part and ``c`` (K, 3) the warping
-coefficients whose first column is zero. See ALGORITHMS.md §3.4–§3.5.
+coefficients whose first column is zero. See docs/algorithms/tps-rpm.md#algorithm.
 """
 
 from __future__ import annotations

@@ -1,12 +1,14 @@
 """TPS-RPM point matching (Chui & Rangarajan 2003; their MATLAB demo ``cMIX.m``).
 
-ALGORITHMS.md §3. The template (K points) is warped onto the data (N points) by deterministic
+See docs/algorithms/tps-rpm.md#algorithm. The template (K points) is warped onto the data (N points)
+by deterministic
 annealing: at each temperature a softassign correspondence with outlier slack is computed, the
 template is attracted to the "virtual targets" it implies, and a regularised thin-plate spline is
-refitted. The settings, the normalisation (§3.2), the temperature schedules and the template
+refitted. The settings, the normalisation, the temperature schedules and the template
 prepared once for many runs live in :mod:`trackfw_plugins.maths.tps_rpm_template`.
 
-Vectorisation (§3.6): one annealing loop runs B data sets of equal size at once. Internally the
+Vectorisation (docs/algorithms/tps-rpm.md#speed): one annealing loop runs B data sets of equal size
+at once. Internally the
 batch is the *last* axis (arrays (K, N, B)), so that sums over K or N are contiguous. Per template,
 Φ, its QR factors and the per-temperature fit operators are cached in ``TpsRpmTemplate``.
 Because the regularised fit is linear in the virtual targets, one TPS update is a single
@@ -79,7 +81,7 @@ class TpsRpmResult:
 
 
 def threshold_matches(correspondence: FloatArray, threshold: float = 0.5) -> IntArray:
-    """One-to-one pairs of a correspondence matrix (§3.5).
+    """One-to-one pairs of a correspondence matrix (docs/algorithms/tps-rpm.md#outputs).
 
     A pair (p, q) is kept when h_pq > threshold and h_pq is the largest entry of row p and of
     column q.
@@ -437,7 +439,7 @@ def tps_rpm_batch(
         template: (K, 2) image points, or a :class:`TpsRpmTemplate` prepared once (its settings
             are used and ``settings`` must be None or the same).
         data_batch: (B, N, 2) image points.
-        settings: run settings (defaults of §3.3/§10 when None).
+        settings: run settings (the defaults when None).
 
     Returns:
         B results, identical to B calls of :func:`tps_rpm` (up to float rounding); with
@@ -463,7 +465,7 @@ def tps_rpm(
     data: FloatArray,
     settings: TpsRpmSettings | None = None,
 ) -> TpsRpmResult:
-    """Register a template (K, 2) onto data (N, 2), both in image coordinates (§3).
+    """Register a template (K, 2) onto data (N, 2), both in image coordinates.
 
     >>> square = np.array([[0.0, 0.0], [10, 0], [10, 10], [0, 10], [5, 2]])
     >>> result = tps_rpm(square, square * 2 + 7)

@@ -1,6 +1,7 @@
 """TPS-RPM inputs: settings, normalisation, temperature schedules and the prepared template.
 
-ALGORITHMS.md §3.2-3.3. Template and data are normalised separately to unit RMS radius (§3.2)
+See docs/algorithms/tps-rpm.md#coordinate-normalisation. Template and data are normalised
+separately to unit RMS radius
 so that the authors' absolute temperature schedule applies to pixel coordinates. A template is
 prepared once (:class:`TpsRpmTemplate`): its normalisation, Φ, QR factors and the per-temperature
 fit operators are cached, so that the many windows matched against it share them. The annealing
@@ -19,14 +20,17 @@ from trackfw_plugins.maths.thin_plate import TpsBasis, homogeneous
 
 
 class TpsRpmSettings(BaseModel):
-    """TPS-RPM parameters; defaults are the authors' code values (§3.3) and ours (§10)."""
+    """TPS-RPM parameters; defaults are the authors' code values and ours.
+
+    See docs/algorithms/tps-rpm.md#parameters.
+    """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     T_init: float = Field(0.5, gt=0, description="Initial temperature (cMIX demo call).")
     T_finalfac: float = Field(500.0, gt=1, description="T_final = T_init / T_finalfac.")
     anneal_rate: float = Field(0.93, gt=0, lt=1, description="T <- anneal_rate * T per level.")
-    perT_maxit: int = Field(  # noqa: N815 - the config key of §10
+    perT_maxit: int = Field(  # noqa: N815 - the documented YAML key
         5, ge=1, description="Alternating updates per temperature level."
     )
     lamda1_init: float = Field(
@@ -55,8 +59,8 @@ class TpsRpmSettings(BaseModel):
     rms_radius: float = Field(1.0, gt=0, description="RMS radius of the normalised point sets.")
     normalisation: Literal["separate", "template"] = Field(
         "separate",
-        description="'separate': template and data each normalised (§3.2); 'template': one "
-        "similarity from the template applied to both (Kalman3, §1.6).",
+        description="'separate': template and data each normalised; 'template': one "
+        "similarity from the template applied to both (Kalman3).",
     )
     match_threshold: float = Field(
         0.5, ge=0, lt=1, description="A pair matches when h > threshold and is row/column max."

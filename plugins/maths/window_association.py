@@ -1,11 +1,13 @@
-"""Window-based TPS-RPM association of predicted points with detections (ALGORITHMS.md §4).
+"""Window-based TPS-RPM association of predicted points with detections.
+
+See docs/algorithms/gap-matchers.md#window-tps-rpm.
 
 Pure maths, independent of frames: ``U`` (K, 2) are the points predicted for one candidate (one
 AR order), ``V`` (N, 2) the detections on frame b, and an optional appearance distance matrix
 (K, N). Steps: the candidate windows of V (:func:`~.candidate_windows.build_windows`, shared by
 all candidates); then hull shape prescreen, TPS-RPM per
 window (batched by window size and across candidates; identical candidates share their runs),
-post-RPM prune, cost ψ = φ + λ1 (K − d_W) + λ2 E_a, best window, and the §4.6 fallback chain.
+post-RPM prune, cost ψ = φ + λ1 (K − d_W) + λ2 E_a, best window, and the fallback chain.
 
 Shape checks (both hull cuts) can be evaluated lazily (default): all windows are registered,
 then the windows are visited in increasing ψ and the first that passes both cuts wins. That is
@@ -33,7 +35,8 @@ from trackfw_plugins.maths.shape_distance import (
 from trackfw_plugins.maths.tps_rpm import tps_rpm_multi_batch
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings, TpsRpmTemplate
 
-#: Costs closer than this are a tie (the smaller AR order wins, ALGORITHMS.md 4.7).
+#: Costs closer than this are a tie: the smaller AR order wins
+#: (docs/algorithms/gap-matchers.md#window-cost).
 TIE_TOLERANCE = 1e-6
 
 FALLBACK_NONE = "none"
@@ -44,7 +47,7 @@ FALLBACK_NO_DETECTIONS = "no_detections"
 
 
 class WindowAssociationParams(WindowSettings):
-    """Parameters of the window association (§4, §10 ``window``)."""
+    """Parameters of the window association (docs/algorithms/gap-matchers.md#parameters)."""
 
     hull_pre: float = Field(0.6, ge=0, description="Discard W when Δ(C_U, C_W) >= hull_pre.")
     hull_post: float = Field(
@@ -263,7 +266,10 @@ def _hungarian_fallback(
     params: WindowAssociationParams,
     diagnostics: WindowDiagnostics,
 ) -> WindowAssociationResult:
-    """§4.6 step 3: Hungarian on E_a alone (on distances to the prediction without E_a)."""
+    """Fallback 3: Hungarian on E_a alone (on distances to the prediction without E_a).
+
+    See docs/algorithms/gap-matchers.md#fallbacks.
+    """
     count = predicted.shape[0]
     if appearance is not None:
         cost_matrix = np.asarray(appearance, dtype=np.float64)
@@ -301,7 +307,10 @@ def _choose(
     params: WindowAssociationParams,
     cache: _ShapeCache,
 ) -> WindowAssociationResult:
-    """Best window of one candidate, with the §4.6 fallback chain."""
+    """Best window of one candidate, with the fallback chain.
+
+    See docs/algorithms/gap-matchers.md#fallbacks.
+    """
     count = template.template.shape[0]
     diagnostics = WindowDiagnostics(
         windows_total=windows.total,
@@ -465,7 +474,7 @@ def associate_window(
     params: WindowAssociationParams | None = None,
     windows: WindowSet | None = None,
 ) -> WindowAssociationResult:
-    """Window association of one candidate U (K, 2) with detections V (N, 2); see §4."""
+    """Window association of one candidate U (K, 2) with detections V (N, 2)."""
     return associate_candidates([predicted], detections, appearance, params, windows)[0]
 
 

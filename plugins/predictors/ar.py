@@ -1,7 +1,9 @@
-"""AR motion predictor: one candidate U_k per AR order k (ALGORITHMS.md §2, paper §3.4.1).
+"""AR motion predictor: one candidate U_k per AR order k (paper §3.4.1).
+
+See docs/algorithms/predictors.md#ar-predictor.
 
 The gap matcher receives U_1, U_2, U_3 (by default) and picks the order whose association cost is
-lowest (§4.7), so this predictor only forecasts and never chooses.
+lowest, so this predictor only forecasts and never chooses.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ MAX_ORDER = 10
 
 
 class ArParams(StageParams):
-    """Parameters of the AR predictor (defaults: ALGORITHMS.md §10, ``ar:``)."""
+    """Parameters of the AR predictor (docs/algorithms/predictors.md#parameters)."""
 
     orders: list[int] = Field(
         default=[1, 2, 3],

@@ -1,4 +1,6 @@
-"""Kalman "TR" predictor: constant-velocity extrapolation of the filter state at a (§1.5).
+"""Kalman "TR" predictor: constant-velocity extrapolation of the filter state at a.
+
+See docs/algorithms/predictors.md#kalman-tr-predictor.
 
 From the state s_a the filter is predicted h = b − a times without correction, s_b = F^h s_a, and
 the prediction is u = H s_b, which equals position + h·velocity.

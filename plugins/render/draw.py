@@ -1,7 +1,7 @@
 """Read a run folder and draw its tracks: points, boxes, identity colours, trails, intervals.
 
 Everything here works on one video's run folder (tracks.txt, frames.csv, gaps.json,
-summary.json; DESIGN.md section 6). Frames on disk are 1-based; in memory 0-based.
+summary.json; docs/algorithms/index.md#run-outputs). Frames on disk are 1-based; in memory 0-based.
 """
 
 from __future__ import annotations

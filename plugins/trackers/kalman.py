@@ -1,7 +1,9 @@
-"""The ``kalman`` segment tracker: Kalman filter + association (ALGORITHMS.md section 1).
+"""The ``kalman`` segment tracker: Kalman filter + association.
+
+See docs/algorithms/segment-tracker.md#segment-tracker.
 
 Kalman1 of the paper is ``association: hungarian``, Kalman2 ``association: nearest`` and Kalman3
-``association: tps-rpm`` (TPS-RPM between all predictions and detections on every frame, 1.6).
+``association: tps-rpm`` (TPS-RPM between all predictions and detections on every frame).
 The filter maths lives in :mod:`trackfw_plugins.maths.kalman`, the association in
 :mod:`trackfw_plugins.maths.assignment`.
 """
@@ -35,7 +37,7 @@ class KalmanTrackerParams(StageParams):
     )
     rpm: TpsRpmSettings = Field(
         default_factory=_kalman3_rpm,
-        description="TPS-RPM settings for association 'tps-rpm' (one similarity from the predictions, 1.6)",
+        description="TPS-RPM settings for association 'tps-rpm' (one similarity from the predictions)",
     )
     gate_px_at_1080: float | None = Field(
         50.0,
@@ -97,7 +99,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         params = self.params
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         if params.reinit_at_b:
-            # The old velocity belongs to the pre-interval camera pose (ALGORITHMS.md 1.5).
+            # The old velocity belongs to the pre-interval camera pose
+            # (docs/algorithms/segment-tracker.md#re-initialisation-at-b).
             self.bank = KalmanBank.start(positions, params.P0, params.Q, params.R)
         else:
             self.bank.predict()

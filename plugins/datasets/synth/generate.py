@@ -1,4 +1,6 @@
-"""Render simulated videos and write them in the trackfw dataset layout (DESIGN.md section 6).
+"""Render simulated videos and write them in the trackfw dataset layout.
+
+See docs/algorithms/datasets.md#dataset-layout.
 
 Each video is written into a hidden temporary folder next to its final place and renamed when
 complete, so an interrupted run never leaves a video that looks finished. Videos are rendered in

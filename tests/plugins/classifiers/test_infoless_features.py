@@ -1,4 +1,7 @@
-"""Tests of the online 11-d info-less feature (ALGORITHMS.md §6.1-6.2)."""
+"""Tests of the online 11-d info-less feature.
+
+See docs/algorithms/infoless-classifier.md#feature-vector.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Tests of the E_a appearance descriptor (ALGORITHMS.md §5)."""
+"""Tests of the E_a appearance descriptor (docs/algorithms/gap-matchers.md#appearance-term)."""
 
 from __future__ import annotations
 

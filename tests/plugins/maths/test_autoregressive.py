@@ -1,4 +1,4 @@
-"""Tests of the per-coordinate AR forecast (ALGORITHMS.md §2)."""
+"""Tests of the per-coordinate AR forecast (docs/algorithms/predictors.md#ar-predictor)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Tests of the candidate windows (ALGORITHMS.md §4.1-§4.2)."""
+"""Tests of the candidate windows (docs/algorithms/gap-matchers.md#candidate-windows)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Tests of the GOG descriptor (ALGORITHMS.md §8.2)."""
+"""Tests of the GOG descriptor (docs/algorithms/gap-matchers.md#gog)."""
 
 from __future__ import annotations
 

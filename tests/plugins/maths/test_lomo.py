@@ -1,4 +1,4 @@
-"""Tests of the LOMO descriptor (ALGORITHMS.md §8.1)."""
+"""Tests of the LOMO descriptor (docs/algorithms/gap-matchers.md#lomo)."""
 
 from __future__ import annotations
 

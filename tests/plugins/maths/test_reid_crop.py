@@ -1,4 +1,7 @@
-"""Tests of the re-ID crops, training-free distances and XQDA (ALGORITHMS.md §8)."""
+"""Tests of the re-ID crops, training-free distances and XQDA.
+
+See docs/algorithms/gap-matchers.md#re-identification.
+"""
 
 from __future__ import annotations
 

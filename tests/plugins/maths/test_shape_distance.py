@@ -1,4 +1,4 @@
-"""Tests of the hull shape distance Δ (ALGORITHMS.md §4.3)."""
+"""Tests of the hull shape distance Δ (docs/algorithms/gap-matchers.md#hull-shape-distance)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,7 @@
-"""Tests of TPS-RPM (ALGORITHMS.md §3): reference transcription, transforms, outliers, batching."""
+"""Tests of TPS-RPM: reference transcription, transforms, outliers, batching.
+
+See docs/algorithms/tps-rpm.md#algorithm.
+"""
 
 from __future__ import annotations
 
@@ -40,7 +43,7 @@ def _spread_points(count: int, seed: int, extent: float = 400.0) -> np.ndarray:
 
 
 def _reference_tps_rpm(template: np.ndarray, data: np.ndarray) -> tuple[np.ndarray, float]:
-    """Plain transcription of cMIX ('mix-rpm' normalisation) with §3.2 normalisation."""
+    """Plain transcription of cMIX ('mix-rpm' normalisation) with separate normalisation."""
     settings = TpsRpmSettings()
     u, _, _ = normalise_points(template)
     w, _, _ = normalise_points(data)
@@ -250,7 +253,7 @@ def test_paper_schedule_runs_and_keeps_the_identity() -> None:
     template = _spread_points(8, seed=21)
     result = tps_rpm(template, template + 5, TpsRpmSettings(schedule="paper"))
     assert result.correspondence.shape == (8, 8)
-    # Far from binary on sparse sets (§3.3), but the largest entry of each row is correct.
+    # Far from binary on sparse sets (the CVIU schedule), but the largest entry of each row is correct.
     assert np.argmax(result.correspondence, axis=1).tolist() == list(range(8))
 
 

@@ -1,4 +1,4 @@
-"""Tests of the window-based association (ALGORITHMS.md §4)."""
+"""Tests of the window-based association (docs/algorithms/gap-matchers.md#window-tps-rpm)."""
 
 from __future__ import annotations
 
