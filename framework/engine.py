@@ -24,7 +24,7 @@ from trackfw.pipeline import Pipeline
 from trackfw.records import NO_MATCH, Detections, FrameData, GapProblem, Interval, VideoContext
 from trackfw.registry import Registry
 from trackfw.stage_cache import CACHED_KINDS, StageCache, StageReplay
-from trackfw.stages import STAGE_KINDS, PipelineStages, Stage
+from trackfw.stages import STAGE_KINDS, BatchStages, PipelineStages, Stage
 from trackfw.video_io import iter_frames
 
 ProgressCallback = Callable[[int], None]
@@ -80,7 +80,7 @@ def stages_need_pixels(stages: dict[str, Stage[Any]]) -> bool:
     return any(stage.needs_pixels for stage in stages.values())
 
 
-def _check_ground_truth(stages: PipelineStages, video: VideoContext) -> None:
+def _check_ground_truth(stages: PipelineStages | BatchStages, video: VideoContext) -> None:
     for kind, stage in stages.by_kind().items():
         for candidate in stage.with_nested():
             if candidate.needs_ground_truth and video.ground_truth is None:
@@ -90,7 +90,7 @@ def _check_ground_truth(stages: PipelineStages, video: VideoContext) -> None:
                 )
 
 
-def check_videos(stages: PipelineStages, videos: Sequence[VideoContext]) -> None:
+def check_videos(stages: PipelineStages | BatchStages, videos: Sequence[VideoContext]) -> None:
     """Raise the UserError a run would meet later: missing ground truth or missing frames.
 
     Called before anything is written, so a bad input never leaves half a run behind.
@@ -175,7 +175,12 @@ class Engine:
             UserError: the video lacks what a stage needs (ground truth for oracle stages, an
                 annotation on the first frame).
         """
+        if self.pipeline.is_batch:
+            from trackfw.batch import run_batch_video  # it imports this module
+
+            return run_batch_video(self.pipeline, self.registry, video, progress, cache)
         stages = self.pipeline.build()
+        assert isinstance(stages, PipelineStages)
         _check_ground_truth(stages, video)
         replay: StageReplay | None = None
         cache_key = ""

@@ -31,9 +31,14 @@ hookimpl = pluggy.HookimplMarker(PROJECT_NAME)
 def trackfw_register_stages(registry: Registry) -> None:
     """Register stage classes.
 
-    Call ``registry.add_detector``, ``add_classifier``, ``add_tracker``, ``add_gap_matcher`` or
-    ``add_predictor`` with each class. A class must subclass the matching base in
-    :mod:`trackfw.stages`, set a unique ``name`` and a ``Params`` model.
+    Call ``registry.add_detector``, ``add_classifier``, ``add_tracker``, ``add_gap_matcher``,
+    ``add_predictor`` or ``add_batch_tracker`` with each class. A class must subclass the matching
+    base in :mod:`trackfw.stages`, set a unique ``name`` and a ``Params`` model.
+
+    A batch tracker (:class:`trackfw.stages.BatchTracker`) replaces the segment tracker, the
+    classifier and the gap matcher of a pipeline: its ``track(detections, video)`` gets every
+    frame's detections of a video at once and returns :class:`trackfw.records.Tracks` with
+    identities of its own.
     """
 
 

@@ -15,16 +15,25 @@ import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, Literal, cast
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from trackfw.errors import UserError
 from trackfw.registry import Registry, unknown_name_message
-from trackfw.stages import STAGE_KINDS, PipelineStages, Stage, StageParams
+from trackfw.stages import (
+    BATCH_KINDS,
+    STAGE_KINDS,
+    BatchStages,
+    PipelineStages,
+    Stage,
+    StageParams,
+)
 
 TOP_LEVEL_KEYS = ("name", "description", "input", "stages", "engine")
+#: Every kind a pipeline's ``stages`` may name: the segment kinds, then the batch tracker.
+PIPELINE_KINDS = (*STAGE_KINDS, "batch_tracker")
 STAGE_KEYS = ("type", "params")
 
 
@@ -42,6 +51,10 @@ class EngineOptions(BaseModel):
         "auto",
         pattern="^(auto|gt|detections)$",
         description="targets on frame 1: 'gt' (gt.csv, as the paper), 'detections' (frame-1 detections), 'auto' (gt when present)",
+    )
+    infoless_frames: Literal["keep", "drop"] = Field(
+        "keep",
+        description="batch pipelines: 'keep' gives the batch tracker every frame's detections, info-less frames included (the paper's protocol); 'drop' leaves out the frames the classifier calls info-less",
     )
 
 
@@ -112,10 +125,17 @@ class Pipeline:
         canonical = json.dumps(self.config, sort_keys=True, default=str)
         return hashlib.sha256(canonical.encode()).hexdigest()[:12]
 
-    def build(self) -> PipelineStages:
+    @property
+    def is_batch(self) -> bool:
+        """True for a batch pipeline (detector + batch tracker), False for a segment pipeline."""
+        return "batch_tracker" in self.stages
+
+    def build(self) -> PipelineStages | BatchStages:
         """Fresh stage instances, one per kind (call once per video)."""
         # resolve_stage checked each class against its kind's base when it was registered.
-        built = {kind: self.stages[kind].build() for kind in STAGE_KINDS}
+        built = {kind: spec.build() for kind, spec in self.stages.items()}
+        if self.is_batch:
+            return BatchStages(**cast(dict[str, Any], built))
         return PipelineStages(**cast(dict[str, Any], built))
 
 
@@ -305,6 +325,48 @@ def resolve_stage(
     return StageConfig(kind, type_name, cls, model, nested)
 
 
+def _pipeline_kinds(
+    stages_data: Mapping[str, Any], engine: EngineOptions, problems: list[str]
+) -> tuple[str, ...]:
+    """The kinds this pipeline must configure: a segment or a batch pipeline, never both.
+
+    Problems with the combination (both trackers, neither, a classifier a batch pipeline would
+    not use, ``infoless_frames: drop`` without a classifier) go to ``problems``, one line each.
+    """
+    segment = [kind for kind in ("tracker", "gap_matcher") if kind in stages_data]
+    if "batch_tracker" not in stages_data:
+        if not segment:
+            problems.append(
+                "stages: no tracker; expected either tracker + classifier + gap_matcher (a segment"
+                " pipeline) or batch_tracker (a batch pipeline)"
+            )
+            return tuple(kind for kind in ("detector", "classifier") if kind in stages_data)
+        if engine.infoless_frames == "drop":
+            problems.append(
+                "engine.infoless_frames: 'drop' applies to batch pipelines only; a segment"
+                " pipeline skips info-less frames itself (expected 'keep' or no value)"
+            )
+        return STAGE_KINDS
+    if segment:
+        problems.append(
+            f"stages: {' and '.join(segment)} given with batch_tracker; expected either a segment"
+            " tracker (tracker + classifier + gap_matcher) or a batch tracker, not both"
+        )
+    if engine.infoless_frames == "drop":
+        if "classifier" not in stages_data:
+            problems.append(
+                "engine.infoless_frames: 'drop' needs stages.classifier, which decides the"
+                " info-less frames"
+            )
+        return (*BATCH_KINDS, "classifier")
+    if "classifier" in stages_data and not segment:
+        problems.append(
+            "stages.classifier: a batch pipeline uses a classifier only with"
+            " engine.infoless_frames: drop; remove it or set that option"
+        )
+    return BATCH_KINDS
+
+
 def load_pipeline(
     path: str | Path,
     registry: Registry,
@@ -376,12 +438,16 @@ def validate_pipeline(
     stages_data = data.get("stages")
     stages: dict[str, StageConfig] = {}
     if not isinstance(stages_data, Mapping):
-        problems.append(f"stages: expected a mapping with {', '.join(STAGE_KINDS)}")
+        problems.append(
+            f"stages: expected a mapping with {', '.join(STAGE_KINDS)} (a segment pipeline) or"
+            f" {', '.join(BATCH_KINDS)} (a batch pipeline)"
+        )
     else:
         for kind in stages_data:
-            if kind not in STAGE_KINDS:
-                problems.append(_unknown_key("stages", kind, STAGE_KINDS))
-        for kind in STAGE_KINDS:
+            if kind not in PIPELINE_KINDS:
+                problems.append(_unknown_key("stages", kind, PIPELINE_KINDS))
+        kinds = _pipeline_kinds(stages_data, engine, problems)
+        for kind in kinds:
             if kind not in stages_data:
                 problems.append(
                     f"stages.{kind}: missing; expected {{type: ...}} ({', '.join(registry.names(kind))})"

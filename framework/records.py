@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from trackfw.arrays import FloatArray, IntArray
+from trackfw.arrays import BoolArray, FloatArray, IntArray
 
 #: Marker for "no detection" in integer index arrays.
 NO_MATCH = -1
@@ -280,3 +280,79 @@ class GapSolution:
     cost: float | None = None
     chosen: str | None = None
     diagnostics: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Tracks:
+    """Tracks with the tracker's own identities, one row per (track, frame), sorted by both.
+
+    Attributes:
+        ids: ``(M,)`` track identity.
+        frames: ``(M,)`` frame index.
+        points: ``(M, 2)`` position (head point) in pixels.
+        observed: ``(M,)`` True where the position is a detection (or was corrected by one),
+            False where the tracker filled it in (interpolated, extrapolated or predicted).
+    """
+
+    ids: IntArray
+    frames: IntArray
+    points: FloatArray
+    observed: BoolArray
+
+    def __post_init__(self) -> None:
+        ids = np.asarray(self.ids, dtype=np.int64).reshape(-1)
+        count = len(ids)
+        frames = np.asarray(self.frames, dtype=np.int64).reshape(count)
+        points = np.asarray(self.points, dtype=np.float64).reshape(count, 2)
+        observed = np.asarray(self.observed, dtype=bool).reshape(count)
+        order = np.lexsort((frames, ids))
+        object.__setattr__(self, "ids", ids[order])
+        object.__setattr__(self, "frames", frames[order])
+        object.__setattr__(self, "points", points[order])
+        object.__setattr__(self, "observed", observed[order])
+
+    @classmethod
+    def empty(cls) -> Tracks:
+        """No tracks at all."""
+        none = np.zeros(0, dtype=np.int64)
+        return cls(none, none, np.zeros((0, 2)), np.zeros(0, dtype=bool))
+
+    @classmethod
+    def concatenate(cls, pieces: list[Tracks]) -> Tracks:
+        """Join track tables whose identities do not clash."""
+        if not pieces:
+            return cls.empty()
+        return cls(
+            np.concatenate([piece.ids for piece in pieces]),
+            np.concatenate([piece.frames for piece in pieces]),
+            np.concatenate([piece.points for piece in pieces]),
+            np.concatenate([piece.observed for piece in pieces]),
+        )
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def track_ids(self) -> IntArray:
+        """The distinct identities, ascending."""
+        return np.unique(self.ids)
+
+    def track(self, track_id: int) -> tuple[IntArray, FloatArray, BoolArray]:
+        """Frames ``(L,)``, points ``(L, 2)`` and observed flags ``(L,)`` of one track."""
+        rows = self.ids == track_id
+        return self.frames[rows], self.points[rows], self.observed[rows]
+
+    def renumbered(self) -> Tracks:
+        """Identities renumbered 1, 2, ... in order of each track's first frame (then old id).
+
+        >>> tracks = Tracks(np.array([7, 3]), np.array([5, 2]), np.zeros((2, 2)), np.ones(2))
+        >>> tracks.renumbered().ids.tolist()
+        [1, 2]
+        """
+        if len(self) == 0:
+            return self
+        unique, inverse = np.unique(self.ids, return_inverse=True)
+        first = np.full(len(unique), np.iinfo(np.int64).max)
+        np.minimum.at(first, inverse, self.frames)
+        rank = np.empty(len(unique), dtype=np.int64)
+        rank[np.lexsort((unique, first))] = np.arange(1, len(unique) + 1)
+        return Tracks(rank[inverse], self.frames, self.points, self.observed)

@@ -114,8 +114,8 @@ class Registry:
     """Every stage class and named input known to trackfw.
 
     Plugins receive the registry in their ``trackfw_register_stages`` hook and call
-    ``add_detector``, ``add_classifier``, ``add_tracker``, ``add_gap_matcher``, ``add_predictor``;
-    in ``trackfw_register_executors`` they call ``add_executor``.
+    ``add_detector``, ``add_classifier``, ``add_tracker``, ``add_gap_matcher``, ``add_predictor``,
+    ``add_batch_tracker``; in ``trackfw_register_executors`` they call ``add_executor``.
     """
 
     stages: dict[tuple[str, str], StageEntry] = field(default_factory=dict)
@@ -149,6 +149,10 @@ class Registry:
     def add_predictor(self, cls: type[Stage[Any]]) -> None:
         """Register a :class:`trackfw.stages.Predictor` subclass."""
         self._add("predictor", cls)
+
+    def add_batch_tracker(self, cls: type[Stage[Any]]) -> None:
+        """Register a :class:`trackfw.stages.BatchTracker` subclass."""
+        self._add("batch_tracker", cls)
 
     def add_input(self, name: str, factory: Callable[[], Path], description: str = "") -> None:
         """Register a named input (``input: builtin:NAME`` in a pipeline)."""

@@ -147,7 +147,8 @@ def _resources(registry: Registry | None, spec: StageConfig) -> list[Path]:
 
 def cache_key(pipeline: Pipeline, video: VideoContext, registry: Registry | None = None) -> str:
     """The key of ``video`` run through the detector and classifier of ``pipeline``."""
-    configs = {kind: pipeline.stages[kind] for kind in CACHED_KINDS}
+    # A batch pipeline may have no classifier: its key covers the detector alone.
+    configs = {kind: pipeline.stages[kind] for kind in CACHED_KINDS if kind in pipeline.stages}
     stages = {kind: spec.as_data() for kind, spec in configs.items()}
     recipe = {
         "format": CACHE_FORMAT,

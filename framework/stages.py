@@ -1,4 +1,10 @@
-"""The stage interfaces: detector, classifier, tracker, gap matcher, and the motion predictor.
+"""The stage interfaces: detector, classifier, tracker, gap matcher, the motion predictor, and
+the batch tracker.
+
+A pipeline is either a *segment* pipeline (detector, classifier, tracker, gap matcher: the
+paper's method) or a *batch* pipeline (detector and batch tracker, with an optional classifier):
+the batch tracker gets every detection of a video at once and returns tracks with its own
+identities (the comparison rows of Table 1, ByteTrack).
 
 A stage class declares:
 
@@ -35,11 +41,15 @@ from trackfw.records import (
     GapSolution,
     Prediction,
     TargetState,
+    Tracks,
     VideoContext,
 )
 
 STAGE_KINDS = ("detector", "classifier", "tracker", "gap_matcher")
 """The four stage kinds of a pipeline, in the order the engine runs them."""
+
+BATCH_KINDS = ("detector", "batch_tracker")
+"""The stage kinds a batch pipeline needs (a classifier is optional there)."""
 
 NESTED_KINDS = ("predictor",)
 """Kinds that are not pipeline stages themselves but are configured inside one."""
@@ -231,6 +241,26 @@ class GapMatcher(Stage[P]):
         """Solve the gap: the position of every target on frame ``b``."""
 
 
+class BatchTracker(Stage[P]):
+    """Tracks every person through a whole video at once, with its own identities."""
+
+    kind = "batch_tracker"
+
+    @abc.abstractmethod
+    def track(self, detections: Sequence[Detections], video: VideoContext) -> Tracks:
+        """Track through the video from every frame's detections.
+
+        Args:
+            detections: one entry per frame of ``video`` (``video.n_frames``); frames that were
+                not read, or were dropped as info-less, have no detections.
+            video: the video (size, frame rate, number of frames).
+
+        Returns:
+            The tracks: identities of the tracker's own, births and deaths where it likes, and a
+            per-point ``observed`` flag (False where a position was filled in).
+        """
+
+
 @dataclass(frozen=True)
 class PipelineStages:
     """One built instance of each pipeline stage kind, for one video run."""
@@ -250,12 +280,35 @@ class PipelineStages:
         return any(stage.needs_pixels for stage in self.by_kind().values())
 
 
+@dataclass(frozen=True)
+class BatchStages:
+    """One built instance of each stage of a batch pipeline, for one video run."""
+
+    detector: Detector[Any]
+    batch_tracker: BatchTracker[Any]
+    classifier: Classifier[Any] | None = None
+
+    def by_kind(self) -> dict[str, Stage[Any]]:
+        """Kind -> stage: detector, classifier (when configured), batch tracker."""
+        stages: dict[str, Stage[Any]] = {"detector": self.detector}
+        if self.classifier is not None:
+            stages["classifier"] = self.classifier
+        stages["batch_tracker"] = self.batch_tracker
+        return stages
+
+    @property
+    def needs_pixels(self) -> bool:
+        """True when any stage (or a stage nested in one) reads pixels."""
+        return any(stage.needs_pixels for stage in self.by_kind().values())
+
+
 STAGE_BASES: dict[str, type[Stage[Any]]] = {
     "detector": Detector,
     "classifier": Classifier,
     "tracker": Tracker,
     "gap_matcher": GapMatcher,
     "predictor": Predictor,
+    "batch_tracker": BatchTracker,
 }
 
 

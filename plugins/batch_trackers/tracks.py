@@ -1,9 +1,10 @@
 """The arrays every batch tracker reads and writes: all detections of a video, and tracks.
 
-A batch tracker (DPNMS, SMOT, CEM, GTCSA-like, ByteTrack) sees every detection of a video at once
+A batch tracker (DPNMS, SMOT, GTCSA-like, ByteTrack) sees every detection of a video at once
 and returns tracks with its own identities. The detections are one flat table sorted by frame;
-the tracks are another flat table sorted by (id, frame). Both are plain numpy so the algorithm
-modules stay independent of the engine.
+the tracks (:class:`trackfw.records.Tracks`, the batch-tracker stage's return type) another,
+sorted by (id, frame). Both are plain numpy so the algorithm modules stay independent of the
+engine.
 """
 
 from __future__ import annotations
@@ -12,7 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trackfw.arrays import BoolArray, FloatArray, IntArray
+from trackfw.arrays import FloatArray, IntArray
+from trackfw.records import Tracks
+
+__all__ = ["PAPER_BOX_SIZE", "Tracks", "VideoDetections", "box_intersection", "box_iou"]
 
 #: Side of the square box the paper puts around every head point for the batch trackers.
 PAPER_BOX_SIZE = 80.0
@@ -90,82 +94,6 @@ class VideoDetections:
     def frame_bounds(self) -> IntArray:
         """``(n_frames + 1,)`` offsets: frame ``t`` owns rows ``bounds[t]:bounds[t + 1]``."""
         return np.searchsorted(self.frames, np.arange(self.n_frames + 1)).astype(np.int64)
-
-
-@dataclass(frozen=True)
-class Tracks:
-    """Tracks with the tracker's own identities, one row per (track, frame), sorted by both.
-
-    Attributes:
-        ids: ``(M,)`` track identity.
-        frames: ``(M,)`` frame index.
-        points: ``(M, 2)`` position (head point) in pixels.
-        observed: ``(M,)`` True where the position is a detection (or was corrected by one),
-            False where the tracker filled it in (interpolated, extrapolated or predicted).
-    """
-
-    ids: IntArray
-    frames: IntArray
-    points: FloatArray
-    observed: BoolArray
-
-    def __post_init__(self) -> None:
-        ids = np.asarray(self.ids, dtype=np.int64).reshape(-1)
-        count = len(ids)
-        frames = np.asarray(self.frames, dtype=np.int64).reshape(count)
-        points = np.asarray(self.points, dtype=np.float64).reshape(count, 2)
-        observed = np.asarray(self.observed, dtype=bool).reshape(count)
-        order = np.lexsort((frames, ids))
-        object.__setattr__(self, "ids", ids[order])
-        object.__setattr__(self, "frames", frames[order])
-        object.__setattr__(self, "points", points[order])
-        object.__setattr__(self, "observed", observed[order])
-
-    @classmethod
-    def empty(cls) -> Tracks:
-        """No tracks at all."""
-        none = np.zeros(0, dtype=np.int64)
-        return cls(none, none, np.zeros((0, 2)), np.zeros(0, dtype=bool))
-
-    @classmethod
-    def concatenate(cls, pieces: list[Tracks]) -> Tracks:
-        """Join track tables whose identities do not clash."""
-        if not pieces:
-            return cls.empty()
-        return cls(
-            np.concatenate([piece.ids for piece in pieces]),
-            np.concatenate([piece.frames for piece in pieces]),
-            np.concatenate([piece.points for piece in pieces]),
-            np.concatenate([piece.observed for piece in pieces]),
-        )
-
-    def __len__(self) -> int:
-        return len(self.ids)
-
-    def track_ids(self) -> IntArray:
-        """The distinct identities, ascending."""
-        return np.unique(self.ids)
-
-    def track(self, track_id: int) -> tuple[IntArray, FloatArray, BoolArray]:
-        """Frames ``(L,)``, points ``(L, 2)`` and observed flags ``(L,)`` of one track."""
-        rows = self.ids == track_id
-        return self.frames[rows], self.points[rows], self.observed[rows]
-
-    def renumbered(self) -> Tracks:
-        """Identities renumbered 1, 2, ... in order of each track's first frame (then old id).
-
-        >>> tracks = Tracks(np.array([7, 3]), np.array([5, 2]), np.zeros((2, 2)), np.ones(2))
-        >>> tracks.renumbered().ids.tolist()
-        [1, 2]
-        """
-        if len(self) == 0:
-            return self
-        unique, inverse = np.unique(self.ids, return_inverse=True)
-        first = np.full(len(unique), np.iinfo(np.int64).max)
-        np.minimum.at(first, inverse, self.frames)
-        rank = np.empty(len(unique), dtype=np.int64)
-        rank[np.lexsort((unique, first))] = np.arange(1, len(unique) + 1)
-        return Tracks(rank[inverse], self.frames, self.points, self.observed)
 
 
 def box_iou(boxes_a: FloatArray, boxes_b: FloatArray) -> FloatArray:
