@@ -15,8 +15,8 @@ import pytest
 from trackfw.dataset import load_video
 from trackfw.engine import Engine
 from trackfw.errors import UserError
+from trackfw.formats.run import TRACKS_FILE, write_run
 from trackfw.hookspecs import hookimpl
-from trackfw.outputs import TRACKS_FILE, write_run
 from trackfw.pipeline import load_pipeline
 from trackfw.records import Detections, FrameData, Tracks, VideoContext
 from trackfw.registry import Registry, load_registry
