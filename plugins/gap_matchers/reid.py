@@ -64,7 +64,6 @@ class ReidGapMatcher(GapMatcher[ReidParams]):
 
     def __init__(self, params: ReidParams | None = None, **nested: Stage) -> None:
         super().__init__(params, **nested)
-        assert isinstance(self.params, ReidParams)
         self.embedder = (
             PersonReidEmbedder(self.params.reid_model, self.params.threads)
             if self.params.descriptor == "person-reid"

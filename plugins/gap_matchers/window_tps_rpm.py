@@ -18,13 +18,14 @@ from pydantic import Field
 
 from trackfw.arrays import FloatArray, IntArray
 from trackfw.records import NO_MATCH, Detections, GapProblem, GapSolution
-from trackfw.stages import GapMatcher, StageParams
+from trackfw.stages import GapMatcher, Stage, StageParams
 from trackfw_plugins.maths.appearance import (
     appearance_descriptors,
     appearance_distance_matrix,
     patch_descriptor,
 )
 from trackfw_plugins.maths.candidate_windows import build_windows
+from trackfw_plugins.maths.person_reid import PersonReidEmbedder, body_boxes, detection_rows
 from trackfw_plugins.maths.reid_crop import crop_box
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 from trackfw_plugins.maths.window_association import (
@@ -54,10 +55,16 @@ class WindowTpsRpmParams(StageParams, WindowAssociationParams):
         gt=0,
         description="side of the appearance patches at 1080p (paper: 80), scaled by height/1080",
     )
-    appearance_region: Literal["patch", "body"] = Field(
+    appearance_region: Literal["patch", "body", "person-reid"] = Field(
         "patch",
         description="'patch' = square centred on the head (paper); 'body' = the 1.5s x 4s box below a head of "
-        "detected size s, resized to 80x80 (ours: clothing tells people apart when heads are small)",
+        "detected size s, resized to 80x80 (ours: clothing tells people apart when heads are small); "
+        "'person-reid' = a pretrained deep re-ID embedding of the body crop (ours, for real footage)",
+    )
+    reid_model: str = Field(
+        "0287",
+        description="appearance_region person-reid: embedder '0287' (shipped), '0248' (shipped,"
+        " smaller) or an ONNX path",
     )
 
 
@@ -84,11 +91,35 @@ def _body_descriptors(image: np.ndarray, points: FloatArray, sizes: FloatArray) 
     return np.array([patch_descriptor(patch) for patch in patches]).reshape(len(patches), -1)
 
 
-def appearance_matrix(problem: GapProblem, params: WindowTpsRpmParams) -> FloatArray | None:
-    """``(K, N)`` appearance distances between targets at frame a and detections at frame b."""
+def appearance_matrix(
+    problem: GapProblem, params: WindowTpsRpmParams, embedder: PersonReidEmbedder | None = None
+) -> FloatArray | None:
+    """``(K, N)`` appearance distances between targets at frame a and detections at frame b.
+
+    With ``embedder`` (``appearance_region: person-reid``) the distance is the Euclidean one
+    between unit embeddings, in [0, 2] like the paper descriptor's [0, sqrt 2].
+    """
     if problem.frame_a is None or problem.frame_b is None:
         return None
     scale = problem.video.height / 1080.0
+    if embedder is not None:
+        fallback = params.patch_at_1080 * scale / 2
+        matched_at_a = [state.matched_detection for state in problem.states]
+        boxes_a = body_boxes(
+            problem.positions_at_a,
+            problem.detections_a,
+            detection_rows(problem.detections_a, matched_at_a),
+            fallback,
+        )
+        boxes_b = body_boxes(
+            problem.detections.points,
+            problem.detections,
+            np.arange(len(problem.detections)),
+            fallback,
+        )
+        return appearance_distance_matrix(
+            embedder.describe(problem.frame_a, boxes_a), embedder.describe(problem.frame_b, boxes_b)
+        )
     if params.appearance_region == "body":
         fallback = params.patch_at_1080 * scale / 2
         detections_a = problem.detections_a
@@ -117,6 +148,14 @@ class WindowTpsRpmGapMatcher(GapMatcher[WindowTpsRpmParams]):
     name = "window-tps-rpm"
     default_predictor = "ar"
 
+    def __init__(self, params: WindowTpsRpmParams | None = None, **nested: Stage) -> None:
+        super().__init__(params, **nested)
+        self.embedder = (
+            PersonReidEmbedder(self.params.reid_model)
+            if self.params.appearance_region == "person-reid" and self.params.lambda2 > 0
+            else None
+        )
+
     @property
     def needs_pixels(self) -> bool:
         # Pixels serve only the appearance term.
@@ -127,7 +166,9 @@ class WindowTpsRpmGapMatcher(GapMatcher[WindowTpsRpmParams]):
         candidates = list(self.predictor.predict(problem))
         detections = problem.detections
         appearance = (
-            appearance_matrix(problem, params) if params.lambda2 > 0 and len(detections) else None
+            appearance_matrix(problem, params, self.embedder)
+            if params.lambda2 > 0 and len(detections)
+            else None
         )
         association = WindowAssociationParams(
             **{name: getattr(params, name) for name in WindowAssociationParams.model_fields}

@@ -46,3 +46,29 @@ def test_reid_relinks_shuffled_people(descriptor: str) -> None:
     expected = [order.index(i) for i in range(4)]
     assert solution.matched_detection.tolist() == expected
     assert np.allclose(solution.positions, at_b[expected])
+
+
+def test_window_tps_rpm_deep_appearance_is_smallest_for_the_same_person() -> None:
+    from trackfw_plugins.gap_matchers.window_tps_rpm import appearance_matrix
+
+    at_a = np.array([[100.0, 80.0], [220.0, 90.0], [340.0, 85.0], [460.0, 95.0]])
+    order = [2, 0, 3, 1]
+    at_b = np.array([[150.0, 120.0], [300.0, 110.0], [420.0, 130.0], [560.0, 100.0]])
+    video = VideoContext(name="v", path="v", n_frames=10, width=640, height=360)
+    problem = GapProblem(
+        interval=Interval(2, 8),
+        target_ids=np.arange(1, 5),
+        histories=[p[None, :] for p in at_a],
+        states=[TargetState(i + 1, p, np.zeros(2)) for i, p in enumerate(at_a)],
+        detections=Detections.from_points(at_b),
+        frame_a=_frame(at_a, COLOURS, 1),
+        frame_b=_frame(at_b, [COLOURS[i] for i in order], 2),
+        video=video,
+    )
+    matcher = load_registry().build_stage(
+        "gap_matcher", {"type": "window-tps-rpm", "params": {"appearance_region": "person-reid"}}
+    )
+    distances = appearance_matrix(problem, matcher.params, matcher.embedder)
+    assert distances is not None and distances.shape == (4, 4)
+    assert distances.argmin(axis=1).tolist() == [order.index(i) for i in range(4)]
+    assert matcher.match(problem).diagnostics["appearance_used"] is True
