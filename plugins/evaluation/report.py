@@ -43,6 +43,7 @@ from trackfw_plugins.evaluation.detection import DetectionCounts, frame_detectio
 from trackfw_plugins.evaluation.hota import HotaCounts, hota_counts
 from trackfw_plugins.evaluation.identity import IdentityCounts, identity_counts
 from trackfw_plugins.evaluation.infoless import InfolessCounts, infoless_counts, infoless_truth
+from trackfw_plugins.maths.head_matching import MATCH_RATIO
 
 EVAL_CSV = "eval.csv"
 EVAL_JSON = "eval.json"
@@ -68,14 +69,15 @@ class EvalSettings:
         sensitivity_px: extra thresholds at which MOTA, MOTP and their -In variants are reported
             (``trackfw eval --sensitivity`` asks for 20 and 60).
         detections: also score the head detections of frames.csv against heads.csv.
-        detection_distance_px: detection match distance; default ``distance_px``.
+        detection_match_ratio: a detection matches a head within this share of the head's size
+            (:mod:`trackfw_plugins.maths.head_matching`).
         hota_zero_distance_px: HOTA point similarity reaches 0 here; default ``2 * distance_px``.
     """
 
     distance_px: float = 40.0
     sensitivity_px: tuple[float, ...] = ()
     detections: bool = False
-    detection_distance_px: float | None = None
+    detection_match_ratio: float = MATCH_RATIO
     hota_zero_distance_px: float | None = None
 
 
@@ -265,6 +267,11 @@ def _check_settings(settings: EvalSettings) -> None:
     for name, value in named:
         if not math.isfinite(value) or value <= 0:
             raise UserError(f"{name} is {value}; expected a positive number of pixels.")
+    ratio = settings.detection_match_ratio
+    if not math.isfinite(ratio) or ratio <= 0:
+        raise UserError(
+            f"the detection match ratio is {ratio}; expected a positive share of a head's size."
+        )
 
 
 def evaluate_video(
@@ -293,7 +300,6 @@ def evaluate_video(
     detection: DetectionCounts | None = None
     if settings.detections and video.ground_truth.heads:
         detection = DetectionCounts()
-        distance = settings.detection_distance_px or settings.distance_px
         empty = np.zeros((0, 3))
         frame_rows = zip(
             run.frames.frames.tolist(), run.frames.detections, ok.tolist(), strict=True
@@ -301,7 +307,7 @@ def evaluate_video(
         for frame, points, is_ok in frame_rows:
             if is_ok:
                 heads = video.ground_truth.heads.get(frame, empty)
-                detection = detection + frame_detection_counts(points, heads, distance)
+                detection = detection + frame_detection_counts(points, heads, settings.detection_match_ratio)
     return VideoEvaluation(
         name=video.name,
         n_frames=video.n_frames,

@@ -1,8 +1,8 @@
 """Precision and recall of a head detector against annotated heads (NumPy only).
 
-A detection point matches a head when it lies within ``0.5 × head_size`` of the head centre;
-detections and heads are paired one-to-one by the Hungarian method on the distance divided by the
-head size, so one detection never counts for two heads.
+A detection point matches a head when it lies within ``0.5 × head_size`` of the head centre,
+paired one-to-one: the project's one detection rule,
+:func:`trackfw_plugins.maths.head_matching.match_heads`.
 """
 
 from __future__ import annotations
@@ -16,28 +16,8 @@ from numpy.typing import NDArray
 
 from trackfw.records import Detections
 from trackfw_plugins.detectors.training.sampling import AnnotatedFrame
-from trackfw_plugins.maths.assignment import distance_matrix, hungarian
-
-#: A detection matches a head when closer than this share of the head size.
-MATCH_RATIO = 0.5
-
-
-def match_heads(
-    points: NDArray[np.float64], heads: NDArray[np.float64], ratio: float = MATCH_RATIO
-) -> int:
-    """Number of true positives among ``(N, 2)`` detection points for ``(M, 3)`` heads.
-
-    >>> heads = np.array([[10.0, 10.0, 20.0], [50.0, 10.0, 20.0]])
-    >>> match_heads(np.array([[12.0, 10.0], [13.0, 11.0], [90.0, 10.0]]), heads)
-    1
-    """
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    heads = np.asarray(heads, dtype=np.float64).reshape(-1, 3)
-    if len(points) == 0 or len(heads) == 0:
-        return 0
-    relative = distance_matrix(heads[:, :2], points) / np.maximum(heads[:, 2:3], 1e-9)
-    assignment = hungarian(relative, gate=ratio)
-    return int(np.count_nonzero(assignment >= 0))
+from trackfw_plugins.maths.assignment import distance_matrix
+from trackfw_plugins.maths.head_matching import MATCH_RATIO, match_heads
 
 
 @dataclass
@@ -52,7 +32,7 @@ class DetectionScore:
 
     def add(self, detections: Detections, heads: NDArray[np.float64]) -> None:
         """Count one frame."""
-        self.true_positives += match_heads(detections.points, heads)
+        self.true_positives += match_heads(detections.points, heads).n_matched
         self.detections += len(detections)
         self.heads += len(heads)
         self.frames += 1

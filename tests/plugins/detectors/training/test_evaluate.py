@@ -6,17 +6,8 @@ import numpy as np
 import pytest
 
 from trackfw.records import Detections
-from trackfw_plugins.detectors.training.evaluate import DetectionScore, evaluate, match_heads
+from trackfw_plugins.detectors.training.evaluate import DetectionScore, evaluate
 from trackfw_plugins.detectors.training.sampling import AnnotatedFrame
-
-
-def test_match_heads_is_one_to_one_within_half_a_head() -> None:
-    heads = np.array([[0.0, 0.0, 10.0], [100.0, 0.0, 40.0]])
-    assert match_heads(np.array([[4.0, 0.0]]), heads) == 1
-    assert match_heads(np.array([[6.0, 0.0]]), heads) == 0  # 0.6 head sizes away
-    assert match_heads(np.array([[115.0, 0.0]]), heads) == 1  # big head, 0.375 away
-    assert match_heads(np.array([[1.0, 0.0], [2.0, 0.0]]), heads) == 1  # duplicates count once
-    assert match_heads(np.zeros((0, 2)), heads) == 0
 
 
 def test_evaluate_counts_precision_recall_and_ignores_tiny_heads() -> None:
