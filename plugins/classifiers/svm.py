@@ -18,6 +18,13 @@ The shipped model (``models/infoless_svm.json``) was trained with ``trackfw trai
 synthetic ``paper`` preset generated with seed 1 (30 videos, 1280x720) with oracle detections,
 DIS ultrafast flow at 320 pixels; its ``training`` field records the details. Retrain it for
 another detector or real footage: ``N_t`` depends on the detector.
+
+``model: yolox`` selects ``models/infoless_svm_yolox.json``, trained the same way on the ``yolox``
+detector's outputs (defaults) over a synthetic set the evaluations do not use::
+
+    trackfw dataset synth --preset paper --seed 7 --videos 12 --out synth7
+    trackfw train classifier --dataset synth7 --out infoless_svm_yolox.json
+        --detector yolox --reference replay --select-rules
 """
 
 from __future__ import annotations
@@ -48,6 +55,9 @@ logger = logging.getLogger(__name__)
 
 #: File name of the model shipped inside the package (``trackfw_plugins/classifiers/models``).
 SHIPPED_MODEL = "infoless_svm.json"
+#: Other shipped models, by the name a pipeline gives as ``model``: each was trained on one
+#: detector's outputs, because N_t and S_t depend on the detector.
+NAMED_MODELS = {"yolox": "infoless_svm_yolox.json"}
 
 #: Feature settings used when a model file does not record them.
 _FEATURE_DEFAULTS: dict[str, Any] = {
@@ -58,9 +68,9 @@ _FEATURE_DEFAULTS: dict[str, Any] = {
 }
 
 
-def shipped_model_path() -> Path:
-    """Path of the shipped model (a real file in both wheel and editable installs)."""
-    resource = resources.files("trackfw_plugins.classifiers").joinpath("models", SHIPPED_MODEL)
+def shipped_model_path(file_name: str = SHIPPED_MODEL) -> Path:
+    """Path of a shipped model (a real file in both wheel and editable installs)."""
+    resource = resources.files("trackfw_plugins.classifiers").joinpath("models", file_name)
     with resources.as_file(resource) as path:
         return Path(path)
 
@@ -73,7 +83,10 @@ def load_shipped_model() -> SvmModel:
 
 
 def load_classifier_model(path: str | None) -> SvmModel:
-    """Load ``path`` (or the shipped model when None) and check it holds the 11-d layout."""
+    """Load ``path`` (a file, a :data:`NAMED_MODELS` name, or None for the shipped model) and
+    check it holds the 11-d layout."""
+    if path in NAMED_MODELS:
+        path = str(shipped_model_path(NAMED_MODELS[path]))
     model = load_shipped_model() if path is None else load_model(Path(path))
     if model.feature_layout != FEATURE_LAYOUT:
         source = path if path is not None else SHIPPED_MODEL
@@ -90,7 +103,8 @@ class SvmParams(StageParams):
     model: str | None = Field(
         default=None,
         description="Path of a trackfw-infoless-svm JSON model (trackfw train classifier);"
-        " empty for the model shipped with trackfw.",
+        " 'yolox' for the shipped model trained on the yolox detector's outputs; empty for"
+        " the model shipped with trackfw (trained on oracle detections).",
     )
     threshold: float | None = Field(
         default=None,
@@ -236,7 +250,9 @@ class SvmClassifier(Classifier[SvmParams]):
 
     @classmethod
     def resource_files(cls, params: SvmParams) -> list[Path]:
-        """The shipped model when no ``model`` is given."""
+        """The shipped model when no ``model`` is given or ``model`` names a shipped one."""
+        if params.model in NAMED_MODELS:
+            return [shipped_model_path(NAMED_MODELS[params.model])]
         return [] if params.model else [shipped_model_path()]
 
     def __init__(self, params: SvmParams | None = None) -> None:

@@ -132,3 +132,18 @@ def test_shipped_model_is_the_default(make_frames: Callable[..., list[np.ndarray
     decisions, probabilities, _ = run(classifier, make_frames(shifts), fast)
     assert len(decisions) == len(shifts)
     assert all(0.0 <= p <= 1.0 for p in probabilities)
+
+
+def test_yolox_model_is_selected_by_name(make_frames: Callable[..., list[np.ndarray]]) -> None:
+    from trackfw_plugins.classifiers.svm import NAMED_MODELS, shipped_model_path
+
+    classifier = SvmClassifier(SvmParams(model="yolox"))
+    # The named model is another file, trained on the yolox detector's counts, never the default.
+    assert classifier.model.training["detector"]["type"] == "yolox"
+    assert SvmClassifier().model.training["detector"]["type"] != "yolox"
+    assert SvmClassifier.resource_files(SvmParams(model="yolox")) == [
+        shipped_model_path(NAMED_MODELS["yolox"])
+    ]
+    shifts, fast = shifts_with_a_turn()
+    decisions, probabilities, _ = run(classifier, make_frames(shifts), fast)
+    assert len(decisions) == len(shifts) and all(0.0 <= p <= 1.0 for p in probabilities)
