@@ -45,7 +45,7 @@ class EngineOptions(BaseModel):
     box_size: float = Field(
         80.0,
         gt=0,
-        description="side in pixels of the box written around each head point in tracks.txt",
+        description="side in pixels of the box written around each head point in tracks.txt (the MOT-text convention: a head at 1080p)",
     )
     init: str = Field(
         "auto",

@@ -4,9 +4,12 @@ A runs folder has one sub-folder per video name, holding (frames are 1-based in 
 
 * ``tracks.txt``: MOTChallenge text ``frame,id,left,top,width,height,1,-1,-1,-1``, a square of
   side ``engine.box_size`` around each tracked point (:func:`trackfw.formats.mot.mot_track_text`);
-  the point is read back as the box centre ``(left + w/2, top + h/2)``;
-* ``frames.csv``: one row per frame, columns :data:`FRAMES_COLUMNS` then ``ms_<stage>`` per stage
-  kind (:func:`frames_header`);
+  the point is read back as the box centre ``(left + w/2, top + h/2)``. The fixed square is the
+  MOT-text output's convention only (the paper's 80 px head at 1080p): ``trackfw render`` draws
+  each detection's own size;
+* ``frames.csv``: one row per frame, columns :data:`FRAMES_COLUMNS`, ``detection_sizes`` (each
+  detection's box ``width height``, in the order of ``detections``; empty when the detector gives
+  no boxes), then ``ms_<stage>`` per stage kind (:func:`frames_header`);
 * ``gaps.json``: one entry per interval (frames a and b, the chosen candidate, matches, positions);
 * ``summary.json``: the pipeline, counts and timings. It is written last, so its presence marks a
   complete run (:func:`check_complete_run`).
@@ -55,11 +58,13 @@ FRAMES_COLUMNS = (
     "detections",
 )
 FRAME_STATUSES = ("ok", "unreadable", "unread")
+#: Optional column (runs written before it lack it): ``width height`` per detection.
+DETECTION_SIZES_COLUMN = "detection_sizes"
 
 
 def frames_header() -> tuple[str, ...]:
-    """Every column of frames.csv: :data:`FRAMES_COLUMNS`, then ``ms_<stage>`` per stage kind."""
-    return (*FRAMES_COLUMNS, *(f"ms_{kind}" for kind in STAGE_KINDS))
+    """Every column of frames.csv: :data:`FRAMES_COLUMNS`, the detection sizes, the stage times."""
+    return (*FRAMES_COLUMNS, DETECTION_SIZES_COLUMN, *(f"ms_{kind}" for kind in STAGE_KINDS))
 
 
 # --------------------------------------------------------------------------------------- writing
@@ -75,6 +80,11 @@ def _frame_row(record: FrameRecord) -> list[Any]:
     points = (
         "" if detections is None else ";".join(f"{x:.1f} {y:.1f}" for x, y in detections.points)
     )
+    sizes = (
+        ""
+        if detections is None or detections.boxes is None
+        else ";".join(f"{w:.1f} {h:.1f}" for w, h in detections.boxes[:, 2:4])
+    )
     return [
         record.t + 1,
         record.status,
@@ -82,6 +92,7 @@ def _frame_row(record: FrameRecord) -> list[Any]:
         "" if record.infoless is None else int(record.infoless),
         "" if detections is None else len(detections),
         points,
+        sizes,
         *(
             f"{record.milliseconds[kind]:.3f}" if kind in record.milliseconds else ""
             for kind in STAGE_KINDS
@@ -259,6 +270,8 @@ class FrameRecords:
         infoless_probability: ``(F,)`` probability, NaN where the file leaves it empty.
         infoless: ``(F,)`` the classifier's label.
         detections: per frame, ``(K, 2)`` detected head points.
+        detection_sizes: per frame, ``(K, 2)`` each detection's box ``(width, height)``; NaN
+            where the detector gave no boxes (or the run predates the column).
     """
 
     frames: IntArray
@@ -266,6 +279,7 @@ class FrameRecords:
     infoless_probability: FloatArray
     infoless: BoolArray
     detections: list[FloatArray]
+    detection_sizes: list[FloatArray]
 
     @property
     def ok(self) -> BoolArray:
@@ -273,16 +287,36 @@ class FrameRecords:
         return np.asarray([status == "ok" for status in self.status], dtype=bool)
 
 
-def _parse_detections(path: Path, line: int, text: str) -> FloatArray:
+def _parse_detections(
+    path: Path, line: int, text: str, column: str = "detections", expected: str = "x y"
+) -> FloatArray:
+    """``(K, 2)`` pairs from ``"a b;a b;..."``."""
     if not text:
         return np.zeros((0, 2), dtype=np.float64)
     points = []
     for item in text.split(";"):
         parts = item.split()
         if len(parts) != 2:
-            raise UserError(f"{path}: line {line}: detections item {item!r}; expected 'x y'.")
-        points.append([parse_finite(path, line, "detections", part) for part in parts])
+            raise UserError(f"{path}: line {line}: {column} item {item!r}; expected '{expected}'.")
+        points.append([parse_finite(path, line, column, part) for part in parts])
     return np.asarray(points, dtype=np.float64).reshape(-1, 2)
+
+
+def _parse_sizes(path: Path, line: int, text: str, count: int) -> FloatArray:
+    """``(count, 2)`` box sizes; NaN when the row has none."""
+    if not text:
+        return np.full((count, 2), np.nan)
+    sizes = _parse_detections(path, line, text, DETECTION_SIZES_COLUMN, "width height")
+    if len(sizes) != count:
+        raise UserError(
+            f"{path}: line {line}: {DETECTION_SIZES_COLUMN} lists {len(sizes)} sizes; expected"
+            f" one per detection ({count})."
+        )
+    if (sizes <= 0).any():
+        raise UserError(
+            f"{path}: line {line}: {DETECTION_SIZES_COLUMN}: expected positive widths and heights."
+        )
+    return sizes
 
 
 def read_frames_csv(path: Path, n_frames: int | None = None) -> FrameRecords:
@@ -300,6 +334,7 @@ def read_frames_csv(path: Path, n_frames: int | None = None) -> FrameRecords:
     probabilities: list[float] = []
     labels: list[bool] = []
     detections: list[FloatArray] = []
+    sizes: list[FloatArray] = []
     seen: set[int] = set()
     for line, values in enumerate(reader, start=2):
         if not values or all(not value.strip() for value in values):
@@ -343,6 +378,7 @@ def read_frames_csv(path: Path, n_frames: int | None = None) -> FrameRecords:
         probabilities.append(probability)
         labels.append(label_text == "1")
         detections.append(points)
+        sizes.append(_parse_sizes(path, line, row.get(DETECTION_SIZES_COLUMN, ""), len(points)))
     order = np.argsort(np.asarray(frames, dtype=np.int64), kind="stable")
     return FrameRecords(
         frames=np.asarray(frames, dtype=np.int64)[order],
@@ -350,6 +386,7 @@ def read_frames_csv(path: Path, n_frames: int | None = None) -> FrameRecords:
         infoless_probability=np.asarray(probabilities, dtype=np.float64)[order],
         infoless=np.asarray(labels, dtype=bool)[order],
         detections=[detections[i] for i in order],
+        detection_sizes=[sizes[i] for i in order],
     )
 
 

@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from trackfw.arrays import FloatArray
 from trackfw.formats.run import check_complete_run, read_run
 
 Image = NDArray[np.uint8]
@@ -50,8 +51,11 @@ class RunData:
         video_path: the dataset video it ran on (summary.json), or None.
         pipeline: the pipeline's name.
         n_frames: frames in the video.
-        box_size: side of the square box around each point (the pipeline's ``engine.box_size``).
+        box_size: the pipeline's ``engine.box_size``: the side of tracks.txt's squares, a head at
+            1080p. A point with no detection size is drawn with this side scaled to the frame.
         tracks: 0-based frame -> ``{target id: (x, y)}``.
+        detections: 0-based frame -> ``((K, 2) points, (K, 2) box (width, height))``; the sizes
+            are NaN where the detector gave no boxes.
         infoless: 0-based frames the run judged info-less.
         unread: 0-based frames that could not be read.
         gaps: resolved interval crossings, in order.
@@ -64,6 +68,7 @@ class RunData:
     n_frames: int
     box_size: float
     tracks: dict[int, dict[int, Point]] = field(default_factory=dict)
+    detections: dict[int, tuple[FloatArray, FloatArray]] = field(default_factory=dict)
     infoless: set[int] = field(default_factory=set)
     unread: set[int] = field(default_factory=set)
     gaps: list[Gap] = field(default_factory=list)
@@ -92,6 +97,11 @@ def load_run_data(run_dir: Path) -> RunData:
         frame: {target: (position[0], position[1]) for target, position in targets.items()}
         for frame, targets in run.tracks.items()
     }
+    for frame, points, sizes in zip(
+        run.frames.frames.tolist(), run.frames.detections, run.frames.detection_sizes, strict=True
+    ):
+        if len(points):
+            data.detections[frame] = (points, sizes)
     for frame, status, infoless in zip(
         run.frames.frames.tolist(), run.frames.status, run.frames.infoless.tolist(), strict=True
     ):
@@ -175,6 +185,36 @@ def _segment_start(data: RunData, t: int) -> int:
     return start
 
 
+#: The height tracks.txt's fixed box refers to (the paper's videos are 1080p).
+REFERENCE_HEIGHT = 1080
+
+
+def box_size_at(data: RunData, t: int, point: Point, frame_height: int) -> tuple[float, float]:
+    """``(width, height)`` of the box to draw around a tracked point on frame ``t``.
+
+    The size of the detection the point sits on (the nearest one within its own size), else
+    ``data.box_size`` (a head at 1080p, the MOT-text convention) scaled by ``frame_height / 1080``.
+
+    >>> data = RunData(Path("."), "v", None, "p", 1, 80.0)
+    >>> box_size_at(data, 0, (5.0, 5.0), 540)
+    (40.0, 40.0)
+    >>> data.detections[0] = (np.array([[6.0, 5.0]]), np.array([[12.0, 14.0]]))
+    >>> box_size_at(data, 0, (5.0, 5.0), 540)
+    (12.0, 14.0)
+    """
+    points, sizes = data.detections.get(t, (None, None))
+    if points is not None and sizes is not None and len(points):
+        known = np.isfinite(sizes).all(axis=1)
+        distance = np.hypot(points[:, 0] - point[0], points[:, 1] - point[1])
+        # Only a detection within its own size counts as the one the point sits on.
+        near = known & (distance <= np.nan_to_num(sizes.max(axis=1)))
+        if near.any():
+            index = int(np.argmin(np.where(near, distance, np.inf)))
+            return float(sizes[index, 0]), float(sizes[index, 1])
+    side = data.box_size * frame_height / REFERENCE_HEIGHT
+    return side, side
+
+
 def draw_frame(image: Image, t: int, data: RunData, trail: int = 15) -> Image:
     """Draw frame ``t``: boxes, points, ids, trails; info-less and unread frames are marked.
 
@@ -195,8 +235,9 @@ def draw_frame(image: Image, t: int, data: RunData, trail: int = 15) -> Image:
         text = "INFO-LESS" if t in data.infoless else "UNREADABLE"
         _label(canvas, text, (width // 2 - int(80 * scale), height // 2), 1.2 * scale)
     start = max(_segment_start(data, t), t - trail)
-    half = data.box_size / 2
-    for target, (x, y) in sorted(data.tracks.get(t, {}).items()):
+    targets = sorted(data.tracks.get(t, {}).items())
+    corners: dict[int, tuple[int, int]] = {}
+    for target, (x, y) in targets:
         colour = identity_colour(target)
         history = [
             data.tracks[s][target]
@@ -206,11 +247,18 @@ def draw_frame(image: Image, t: int, data: RunData, trail: int = 15) -> Image:
         if len(history) > 1:
             points = np.round(np.asarray(history)).astype(np.int32).reshape(-1, 1, 2)
             cv2.polylines(canvas, [points], False, colour, 2, cv2.LINE_AA)
-        top_left = (round(x - half), round(y - half))
-        bottom_right = (round(x + half), round(y + half))
+        box_width, box_height = box_size_at(data, t, (x, y), height)
+        top_left = (round(x - box_width / 2), round(y - box_height / 2))
+        bottom_right = (round(x + box_width / 2), round(y + box_height / 2))
         cv2.rectangle(canvas, top_left, bottom_right, colour, 2, cv2.LINE_AA)
-        cv2.circle(canvas, (round(x), round(y)), 4, colour, -1, cv2.LINE_AA)
-        _label(canvas, str(target), (top_left[0] + 3, top_left[1] - 6), 0.6 * scale)
+        corners[target] = top_left
+    # Points and ids go on top of every box and trail: in a group, a neighbour's box must not
+    # hide where a target is.
+    for target, (x, y) in targets:
+        cv2.circle(canvas, (round(x), round(y)), 4, identity_colour(target), -1, cv2.LINE_AA)
+    for target, _ in targets:
+        left, top = corners[target]
+        _label(canvas, str(target), (left + 3, top - 6), 0.6 * scale)
     _label(
         canvas,
         f"frame {t + 1}/{data.n_frames}  {data.pipeline}",

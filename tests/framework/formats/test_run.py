@@ -72,8 +72,39 @@ def _run_folder(folder: Path) -> Path:
 
 
 def test_the_header_is_defined_once() -> None:
-    assert ",".join(frames_header()) == HEADER
+    # HEADER (used above) is the layout of runs written before detection sizes were recorded;
+    # those runs stay readable.
+    with_sizes = HEADER.replace(",detections,", ",detections,detection_sizes,")
+    assert ",".join(frames_header()) == with_sizes
     assert frames_header()[: len(FRAMES_COLUMNS)] == FRAMES_COLUMNS
+
+
+def test_detection_sizes_are_read_per_detection(tmp_path: Path) -> None:
+    path = tmp_path / "frames.csv"
+    path.write_text(
+        ",".join(frames_header()) + "\n"
+        "1,ok,0.1,0,2,10 20;30 40,12.0 14.0;8 8,1,1,1,0\n"
+        "2,ok,0.1,0,1,10 20,,1,1,1,0\n",
+        encoding="utf-8",
+    )
+    records = read_frames_csv(path)
+    assert records.detection_sizes[0].tolist() == [[12.0, 14.0], [8.0, 8.0]]
+    assert records.detection_sizes[1].shape == (1, 2) and np.isnan(records.detection_sizes[1]).all()
+
+
+@pytest.mark.parametrize(
+    ("sizes", "message"),
+    [("12 14", "lists 1 sizes; expected one per detection (2)"), ("12 14;0 3", "positive")],
+)
+def test_malformed_detection_sizes(tmp_path: Path, sizes: str, message: str) -> None:
+    path = tmp_path / "frames.csv"
+    path.write_text(
+        ",".join(frames_header()) + f"\n1,ok,0.1,0,2,10 20;30 40,{sizes},1,1,1,0\n",
+        encoding="utf-8",
+    )
+    with pytest.raises(UserError) as error:
+        read_frames_csv(path)
+    assert f"{path}: line 2: detection_sizes" in str(error.value) and message in str(error.value)
 
 
 def test_read_run(tmp_path: Path) -> None:

@@ -176,3 +176,36 @@ def test_labels_outline_surrounds_the_text(tmp_path: Path, width: int, height: i
     # No outline pixel strays from the text: each lies within a few pixels of a white one.
     distance = cv2.distanceTransform(1 - fill, cv2.DIST_L2, 3)
     assert distance[outline.astype(bool)].max() <= 8.0
+
+
+def _colour_box(image: np.ndarray, colour: tuple[int, int, int]) -> tuple[int, int]:
+    """Width and height of the pixels drawn in ``colour``."""
+    rows, cols = np.nonzero(np.abs(image.astype(int) - np.array(colour)).max(axis=2) <= 40)
+    return int(cols.max() - cols.min() + 1), int(rows.max() - rows.min() + 1)
+
+
+def test_boxes_take_the_detection_size_or_a_head_size_scaled_to_the_frame(
+    tmp_path: Path,
+) -> None:
+    """Not the fixed 80x80 of tracks.txt: at 640x360 that covered a whole group."""
+    data = RunData(tmp_path, "clip", None, "p", 60, 80.0)
+    # Target 1 sits on a detection of 20x30 px; target 2 on no detection with a size.
+    data.tracks = {0: {1: (200.0, 150.0), 2: (420.0, 200.0)}}
+    data.detections = {0: (np.array([[201.0, 149.0]]), np.array([[20.0, 30.0]]))}
+    drawn = draw_frame(blank_frame(640, 360), 0, data, trail=0)
+    width, height = _colour_box(drawn, identity_colour(1))
+    assert abs(width - 20) <= 3 and abs(height - 30) <= 3, (width, height)
+    # No size known: the 80 px head of 1080p scaled to 360 rows is 27 px.
+    width, height = _colour_box(drawn, identity_colour(2))
+    assert abs(width - 27) <= 3 and abs(height - 27) <= 3, (width, height)
+
+
+def test_a_run_records_detection_sizes_for_render(run_dir: Path) -> None:
+    """frames.csv carries each detection's box size; render reads it back per detection."""
+    data = load_run_data(run_dir / "clip")
+    points, sizes = data.detections[9]
+    assert len(points) and sizes.shape == (len(points), 2)
+    assert np.isfinite(sizes).all() and (sizes > 0).all()
+    # The MOT-text output keeps its 80x80 convention.
+    first = (run_dir / "clip" / "tracks.txt").read_text().splitlines()[0].split(",")
+    assert first[4:6] == ["80", "80"]
