@@ -93,11 +93,15 @@ def detectors(
     height: int,
     thresholds: list[float],
     overrides: dict[str, object] | None = None,
+    yolox_overrides: dict[str, object] | None = None,
 ) -> dict[str, Callable]:
     """The detect functions to compare, by name; ``overrides`` are edgebox-cnn parameters."""
     built: dict[str, Callable[[np.ndarray], Detections]] = {}
     edgebox_params: dict[str, object] = dict(overrides or {})
     for name in names:
+        if name.startswith(("yolox", "light-person-192")):
+            built[name] = yolox_detector(name, yolox_overrides or {}).detect_image
+            continue
         if name == "edgebox-cnn":
             default = EdgeBoxCnnParams(model=model, **edgebox_params)
             lowest = min([default.score_threshold, *thresholds])
@@ -183,6 +187,16 @@ class Counts:
         return f"P {precision:.3f} R {recall:.3f} ({self.tp}/{self.found}/{self.truth})"
 
 
+def yolox_detector(name: str, overrides: dict[str, object]) -> YoloxDetector:
+    """``yolox`` (defaults), ``yolox-640`` (input_size 640) or ``light-person-192``."""
+    params: dict[str, object] = {"model": "light-person-192"} if name.startswith("light") else {}
+    size = name.rsplit("-", 1)[1] if name.startswith("yolox-") else ""
+    if size:
+        params["input_size"] = int(size)
+    params.update(overrides)
+    return YoloxDetector(YoloxParams(**params))  # type: ignore[arg-type]
+
+
 def mot_detectors(
     names: list[str], model: str, yolox_overrides: dict[str, object]
 ) -> dict[str, Callable[[np.ndarray], tuple[np.ndarray | None, Detections]]]:
@@ -190,14 +204,7 @@ def mot_detectors(
     built: dict[str, Callable[[np.ndarray], tuple[np.ndarray | None, Detections]]] = {}
     for name in names:
         if name.startswith(("yolox", "light-person-192")):
-            params: dict[str, object] = (
-                {"model": "light-person-192"} if name.startswith("light") else {}
-            )
-            size = name.rsplit("-", 1)[1] if name.startswith("yolox-") else ""
-            if size:
-                params["input_size"] = int(size)
-            params.update(yolox_overrides)
-            detector = YoloxDetector(YoloxParams(**params))  # type: ignore[arg-type]
+            detector = yolox_detector(name, yolox_overrides)
 
             def bodies(
                 image: np.ndarray, detector: YoloxDetector = detector
@@ -333,6 +340,7 @@ def main() -> None:
             height,
             thresholds,
             overrides,
+            parse_overrides(arguments.yolox_overrides),
         ).items():
             score = evaluate(detect, frames, min_head_size=minimum)
             print(f"  {name:17s} all frames         {score.summary()}")
