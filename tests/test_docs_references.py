@@ -10,7 +10,7 @@
   package cannot read it.
 * Every parameter table in the algorithm pages (``<!-- params: KIND/NAME -->`` before the table)
   gives the defaults the stage's ``Params`` model has, and the tables of a stage list all of its
-  parameters.
+  parameters; every built-in stage with parameters has a table.
 """
 
 from __future__ import annotations
@@ -253,3 +253,18 @@ def test_parameter_table_matches_code(marker: str) -> None:
     if missing:
         problems.append(f"{marker}: parameters missing from the docs tables: {missing}")
     assert not problems, "\n".join(problems)
+
+
+def test_every_built_in_stage_has_a_parameter_table() -> None:
+    registry = load_registry()
+    missing = [
+        f"{entry.kind}/{entry.name}"
+        for entry in registry.stages.values()
+        if entry.source.builtin
+        and (entry.cls.Params.model_fields or getattr(entry.cls, "nested", {}))
+        and f"{entry.kind}/{entry.name}" not in TABLES
+    ]
+    assert not missing, (
+        "built-in stages without a parameter table in docs/algorithms/ (add one after a"
+        f" '<!-- params: KIND/NAME -->' line on the stage kind's page): {sorted(missing)}"
+    )
