@@ -48,7 +48,7 @@ from trackfw_plugins.datasets.mot import load_mot_sequence
 from trackfw_plugins.detectors.edgebox_cnn import EdgeBoxCnnDetector, EdgeBoxCnnParams
 from trackfw_plugins.detectors.hog import HogDetector, HogParams
 from trackfw_plugins.detectors.onnx_detector import OnnxDetector, OnnxDetectorParams
-from trackfw_plugins.detectors.training.evaluate import evaluate, match_heads
+from trackfw_plugins.detectors.training.evaluate import evaluate
 from trackfw_plugins.detectors.training.sampling import (
     AnnotatedFrame,
     iter_dataset_frames,
@@ -56,6 +56,7 @@ from trackfw_plugins.detectors.training.sampling import (
 )
 from trackfw_plugins.detectors.yolox import YoloxDetector, YoloxParams
 from trackfw_plugins.maths.assignment import hungarian
+from trackfw_plugins.maths.head_matching import match_heads
 
 DENSE_MODEL = Path(__file__).resolve().parents[1] / "plugins/detectors/models/head_cnn_dense.onnx"
 
@@ -276,13 +277,15 @@ def mot_report(
                         match_boxes(bodies[keep], truth), int(keep.sum()), len(truth)
                     )
                 head_counts[level].add(
-                    match_heads(detections.points[keep], truth_heads),
+                    match_heads(detections.points[keep], truth_heads).n_matched,
                     int(keep.sum()),
                     len(truth_heads),
                 )
             if bodies is not None and name != "hog":
                 proxy = body_head_points(bodies, MEASURED_HEAD_FRACTION)
-                proxy_counts.add(match_heads(proxy, truth_heads), len(proxy), len(truth_heads))
+                proxy_counts.add(
+                    match_heads(proxy, truth_heads).n_matched, len(proxy), len(truth_heads)
+                )
         milliseconds = 1000.0 * seconds / max(len(frames), 1)
         for level in levels:
             label = name if level is None else f"{name}@{level:g}"
