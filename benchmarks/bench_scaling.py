@@ -17,10 +17,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from trackfw.bench.executor import ExecutorOptions, make_executor
-from trackfw.bench.jobs import pin_threads
-from trackfw.bench.sweep import plan_sweep, run_sweep
 from trackfw.registry import load_registry
+from trackfw_plugins.bench.executor import ExecutorOptions, make_executor
+from trackfw_plugins.bench.jobs import pin_threads
+from trackfw_plugins.bench.sweep import plan_sweep, run_sweep
 from trackfw_plugins.datasets.points import make_points_video
 
 REPO = Path(__file__).resolve().parents[1]

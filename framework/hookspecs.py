@@ -66,8 +66,8 @@ def trackfw_register_executors(registry: Registry) -> None:
     """Register executors that run the jobs of ``trackfw bench`` (``--executor NAME``).
 
     Call ``registry.add_executor(name, cls_or_factory)``. ``cls_or_factory(options)`` receives a
-    :class:`trackfw.bench.executor.ExecutorOptions` and returns an object with a
-    ``run(jobs, on_result)`` method (:class:`trackfw.bench.executor.Executor`): it runs every
-    :class:`trackfw.bench.jobs.Job` through :func:`trackfw.bench.jobs.run_job`, wherever it likes,
-    and calls ``on_result`` with each :class:`trackfw.bench.jobs.JobResult` as it arrives.
+    :class:`trackfw_plugins.bench.executor.ExecutorOptions` and returns an object with a
+    ``run(jobs, on_result)`` method (:class:`trackfw_plugins.bench.executor.Executor`): it runs every
+    :class:`trackfw_plugins.bench.jobs.Job` through :func:`trackfw_plugins.bench.jobs.run_job`, wherever it likes,
+    and calls ``on_result`` with each :class:`trackfw_plugins.bench.jobs.JobResult` as it arrives.
     """

@@ -166,7 +166,7 @@ class Registry:
     def add_executor(self, name: str, cls_or_factory: Callable[..., Any]) -> None:
         """Register an executor for ``trackfw bench --executor NAME``.
 
-        ``cls_or_factory(options)`` gets a :class:`trackfw.bench.executor.ExecutorOptions` and
+        ``cls_or_factory(options)`` gets a :class:`trackfw_plugins.bench.executor.ExecutorOptions` and
         returns an object with ``run(jobs, on_result)``.
         """
         if not isinstance(name, str) or not name.strip() or not callable(cls_or_factory):

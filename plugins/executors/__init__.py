@@ -1,7 +1,8 @@
 """Executors for ``trackfw bench``: ``local`` (a process pool) and ``dask`` (Dask distributed).
 
-Also adds the ``trackfw bench`` command. The executor classes are imported only when one is
-built, so loading the plugin stays cheap (and ``dask`` is needed only when it is used).
+The ``trackfw bench`` command itself comes with the bench plugin (:mod:`trackfw_plugins.bench`).
+The executor classes are imported only when one is built, so loading the plugin stays cheap (and
+``dask`` is needed only when it is used).
 """
 
 from __future__ import annotations
@@ -11,8 +12,8 @@ from typing import TYPE_CHECKING, Any
 from trackfw.hookspecs import hookimpl
 
 if TYPE_CHECKING:
-    from trackfw.bench.executor import ExecutorOptions
     from trackfw.registry import Registry
+    from trackfw_plugins.bench.executor import ExecutorOptions
 
 TRACKFW_PLUGIN_API = 1
 
@@ -36,11 +37,3 @@ def trackfw_register_executors(registry: Registry) -> None:
     """Register ``local`` and ``dask``."""
     registry.add_executor("local", local_executor)
     registry.add_executor("dask", dask_executor)
-
-
-@hookimpl
-def trackfw_register_commands(app: Any) -> None:
-    """Add ``trackfw bench``."""
-    from trackfw.bench.cli import register
-
-    register(app)

@@ -15,9 +15,9 @@ import uuid
 from collections.abc import Sequence
 from typing import Any
 
-from trackfw.bench.executor import Executor, ExecutorOptions, ResultCallback
-from trackfw.bench.jobs import Job, JobResult, pin_threads, run_job
 from trackfw.errors import UserError
+from trackfw_plugins.bench.executor import Executor, ExecutorOptions, ResultCallback
+from trackfw_plugins.bench.jobs import Job, JobResult, pin_threads, run_job
 
 
 class DaskExecutor(Executor):

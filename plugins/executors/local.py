@@ -1,7 +1,7 @@
 """The ``local`` executor: jobs in this process, or in a pool of worker processes.
 
 Workers are started with ``spawn`` (no state forked from the parent) and pinned to one thread
-per library (:func:`trackfw.bench.jobs.pin_threads`), so ``--jobs N`` means N busy cores. The
+per library (:func:`trackfw_plugins.bench.jobs.pin_threads`), so ``--jobs N`` means N busy cores. The
 pool lives until :meth:`LocalExecutor.close`, across the waves of a sweep.
 """
 
@@ -13,8 +13,8 @@ from collections.abc import Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 
-from trackfw.bench.executor import Executor, ExecutorOptions, ResultCallback
-from trackfw.bench.jobs import Job, JobResult, pin_threads, run_job
+from trackfw_plugins.bench.executor import Executor, ExecutorOptions, ResultCallback
+from trackfw_plugins.bench.jobs import Job, JobResult, pin_threads, run_job
 
 
 class WorkerLostError(RuntimeError):

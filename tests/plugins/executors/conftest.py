@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from trackfw.bench.executor import ExecutorOptions, make_executor
-from trackfw.bench.report import build_table
-from trackfw.bench.sweep import SweepResult, plan_sweep, run_sweep
 from trackfw.registry import Registry, load_registry
+from trackfw_plugins.bench.executor import ExecutorOptions, make_executor
+from trackfw_plugins.bench.report import build_table
+from trackfw_plugins.bench.sweep import SweepResult, plan_sweep, run_sweep
 from trackfw_plugins.datasets.points import make_points_video
 
 REPO = Path(__file__).resolve().parents[3]

@@ -7,10 +7,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 
-from trackfw.bench.executor import ExecutorOptions
-from trackfw.bench.jobs import Job, run_job
 from trackfw.hookspecs import hookimpl
 from trackfw.registry import Registry, load_registry
+from trackfw_plugins.bench.executor import ExecutorOptions
+from trackfw_plugins.bench.jobs import Job, run_job
 
 
 def test_builtin_executors_register_through_the_hook() -> None:

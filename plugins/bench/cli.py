@@ -65,11 +65,11 @@ def bench_command(
     """
     from rich.console import Console
 
-    from trackfw.bench.executor import ExecutorOptions, make_executor
-    from trackfw.bench.report import build_table, markdown_table, write_table
-    from trackfw.bench.sweep import plan_sweep
     from trackfw.cli import get_registry
     from trackfw.errors import UserError
+    from trackfw_plugins.bench.executor import ExecutorOptions, make_executor
+    from trackfw_plugins.bench.report import build_table, markdown_table, write_table
+    from trackfw_plugins.bench.sweep import plan_sweep
 
     error_console = Console(stderr=True)
     registry = get_registry()
@@ -120,7 +120,7 @@ def bench_command(
 def _run_with_progress(
     plan: Any, runner: Any, executor_name: str, quiet: bool, console: Any
 ) -> Any:
-    from trackfw.bench.sweep import run_sweep
+    from trackfw_plugins.bench.sweep import run_sweep
 
     if quiet:
         return run_sweep(plan, runner, executor_name=executor_name)

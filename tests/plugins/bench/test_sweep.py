@@ -178,8 +178,8 @@ def test_bad_input_is_reported_before_anything_is_written(
 def test_per_pipeline_overrides_apply_to_the_named_pipeline_only(
     small_dataset, tmp_path: Path
 ) -> None:
-    from trackfw.bench.sweep import plan_sweep
     from trackfw.registry import load_registry
+    from trackfw_plugins.bench.sweep import plan_sweep
 
     dataset = small_dataset(count=1)
     plan = plan_sweep(

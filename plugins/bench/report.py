@@ -2,7 +2,7 @@
 
 One row per pipeline, each value the mean over the videos that pipeline completed (the paper's
 way; MOTA-In and MOTP-In over the videos that have an interval). Metrics come from the evaluation
-plugin (``trackfw_plugins.evaluation``); speed from each run's summary.json and bench.json:
+plugin (``trackfw_plugins.evaluation``, a declared dependency of this one); speed from each run's summary.json and bench.json:
 
 * ``fps``: frames per second of the whole run. When the detector and classifier were replayed
   from the stage cache, their recorded time is added back, so the figure stays that of a run
@@ -21,14 +21,18 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from trackfw.atomic import atomic_open, write_text
-from trackfw.bench.jobs import BENCH_FILE, is_done
-from trackfw.bench.sweep import SweepPlan
-from trackfw.errors import UserError
 from trackfw.formats.run import SUMMARY_FILE, read_run
 from trackfw.stages import STAGE_KINDS
+from trackfw_plugins.bench.jobs import BENCH_FILE, is_done
+from trackfw_plugins.bench.sweep import SweepPlan
+from trackfw_plugins.evaluation.report import (
+    DatasetEvaluation,
+    EvalSettings,
+    evaluate_video,
+    write_reports,
+)
 
 TABLE_MARKDOWN = "table.md"
 TABLE_CSV = "table.csv"
@@ -73,17 +77,6 @@ class TableRow:
         return float(self.metrics.get(column, math.nan))
 
 
-def _evaluation_module() -> Any:
-    try:
-        from trackfw_plugins.evaluation import report
-    except ImportError as error:
-        raise UserError(
-            "trackfw bench needs the evaluation plugin (trackfw_plugins.evaluation), which could"
-            f" not be imported ({error})."
-        ) from None
-    return report
-
-
 def _mean(values: list[float]) -> float:
     finite = [value for value in values if value is not None and math.isfinite(value)]
     return sum(finite) / len(finite) if finite else math.nan
@@ -118,9 +111,8 @@ def build_table(plan: SweepPlan, distance_px: float = 40.0) -> list[TableRow]:
 
     Also writes eval.csv and eval.json into each pipeline's runs folder.
     """
-    evaluation = _evaluation_module()
 
-    settings = evaluation.EvalSettings(distance_px=distance_px)
+    settings = EvalSettings(distance_px=distance_px)
     names = [entry.pipeline.name for entry in plan.pipelines]
     rows: list[TableRow] = []
     for entry in plan.pipelines:
@@ -132,20 +124,20 @@ def build_table(plan: SweepPlan, distance_px: float = 40.0) -> list[TableRow]:
                 continue
             done_dirs.append(run_dir)
             evaluations.append(
-                evaluation.evaluate_video(video, read_run(run_dir, video.n_frames), settings)
+                evaluate_video(video, read_run(run_dir, video.n_frames), settings)
             )
         label = entry.pipeline.name
         if names.count(label) > 1:
             label = f"{label} ({entry.pipeline.content_hash})"
         row = TableRow(label, entry.pipeline.content_hash, len(done_dirs), len(plan.videos))
         if evaluations:
-            dataset_evaluation = evaluation.DatasetEvaluation(settings=settings, videos=evaluations)
+            dataset_evaluation = DatasetEvaluation(settings=settings, videos=evaluations)
             row.metrics = {
                 key: float(value)
                 for key, value in dataset_evaluation.mean_row().items()
                 if key != "video"
             }
-            evaluation.write_reports(dataset_evaluation, entry.runs_dir)
+            write_reports(dataset_evaluation, entry.runs_dir)
         row.speed = _speed(done_dirs)
         rows.append(row)
     return rows

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from trackfw.bench.executor import ExecutorOptions, make_executor
-from trackfw.bench.sweep import plan_sweep, run_sweep
 from trackfw.registry import load_registry
+from trackfw_plugins.bench.executor import ExecutorOptions, make_executor
+from trackfw_plugins.bench.sweep import plan_sweep, run_sweep
 
 
 def test_a_job_that_kills_its_worker_is_retried_then_recorded(

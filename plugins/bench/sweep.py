@@ -23,7 +23,6 @@ from pathlib import Path
 from typing import Any
 
 from trackfw.atomic import write_json
-from trackfw.bench.jobs import Job, JobResult, is_done
 from trackfw.dataset import list_videos, load_video
 from trackfw.engine import check_videos
 from trackfw.errors import UserError
@@ -31,6 +30,7 @@ from trackfw.pipeline import Pipeline, load_pipeline, parse_yaml
 from trackfw.records import VideoContext
 from trackfw.registry import Registry
 from trackfw.stage_cache import StageCache, cache_key
+from trackfw_plugins.bench.jobs import Job, JobResult, is_done
 
 RUNS_FOLDER = "runs"
 CACHE_FOLDER = "cache"
@@ -307,7 +307,7 @@ def run_sweep(
 
     Args:
         plan: from :func:`plan_sweep`.
-        executor: an object with ``run(jobs, on_result)`` (see :mod:`trackfw.bench.executor`).
+        executor: an object with ``run(jobs, on_result)`` (see :mod:`trackfw_plugins.bench.executor`).
         on_result: called with each job's result (progress display).
         executor_name: recorded in manifest.json.
     """

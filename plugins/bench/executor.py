@@ -5,7 +5,7 @@ An executor is registered by a plugin through the ``trackfw_register_executors``
 The built-in ``local`` and ``dask`` executors live in ``trackfw_plugins.executors``.
 
 The contract: :meth:`Executor.run` calls ``on_result`` exactly once per job, in this process,
-with the :class:`~trackfw.bench.jobs.JobResult` of :func:`~trackfw.bench.jobs.run_job` (which
+with the :class:`~trackfw_plugins.bench.jobs.JobResult` of :func:`~trackfw_plugins.bench.jobs.run_job` (which
 never raises for a job's own failure). When the infrastructure loses a job (a worker process
 dies, a cluster drops it after its retries), the executor reports a failed result for it
 (:meth:`JobResult.failure`) rather than raising, so the sweep goes on. A sweep may call ``run``
@@ -19,8 +19,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from trackfw.bench.jobs import Job, JobResult
 from trackfw.errors import UserError
+from trackfw_plugins.bench.jobs import Job, JobResult
 
 if TYPE_CHECKING:
     from trackfw.registry import Registry
