@@ -252,8 +252,16 @@ def mot_report(
         f" {sum(len(mot.boxes[f]) for f in frames)} body boxes"
     )
     minimum = 8.0 * mot.height / 1080.0
+    configured = float(
+        yolox_overrides.get("score_threshold", YoloxParams().score_threshold)  # type: ignore[arg-type]
+    )
+    if thresholds:
+        # One run at the lowest threshold; each row keeps the boxes scoring at least its own
+        # (NMS goes best first, so a box below a threshold never removed one above it).
+        yolox_overrides = {**yolox_overrides, "score_threshold": min(configured, *thresholds)}
     for name, detect in mot_detectors(names, model, yolox_overrides).items():
-        levels = [None, *thresholds] if name != "edgebox-cnn" else [None]
+        person_model = name.startswith(("yolox", "light"))
+        levels: list[float | None] = [None, *thresholds] if person_model else [None]
         boxes_counts = {level: Counts() for level in levels}
         head_counts = {level: Counts() for level in levels}
         proxy_counts = Counts()
@@ -269,8 +277,8 @@ def mot_report(
             for level in levels:
                 keep = (
                     np.ones(len(detections), dtype=bool)
-                    if level is None
-                    else detections.scores >= level
+                    if not person_model
+                    else detections.scores >= (configured if level is None else level)
                 )
                 if bodies is not None:
                     boxes_counts[level].add(
@@ -282,7 +290,9 @@ def mot_report(
                     len(truth_heads),
                 )
             if bodies is not None and name != "hog":
-                proxy = body_head_points(bodies, MEASURED_HEAD_FRACTION)
+                proxy = body_head_points(
+                    bodies[detections.scores >= configured], MEASURED_HEAD_FRACTION
+                )
                 proxy_counts.add(
                     match_heads(proxy, truth_heads).n_matched, len(proxy), len(truth_heads)
                 )
