@@ -18,14 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from trackfw.dataset import write_meta
-from trackfw.formats.annotations import (
-    GT_FILE,
-    HEADS_FILE,
-    INTERVALS_FILE,
-    write_heads,
-    write_intervals,
-    write_targets,
-)
+from trackfw.formats.annotations import write_annotations
 from trackfw.formats.run import FRAMES_FILE, GAPS_FILE, SUMMARY_FILE, TRACKS_FILE, frames_header
 from trackfw.records import Interval
 from trackfw_plugins.evaluation.report import EvalSettings, evaluate_dataset, write_reports
@@ -64,12 +57,8 @@ def write_synthetic(
             for t in range(n_frames)
             if not infoless[t]
         }
-        write_targets(video / GT_FILE, targets)
-        write_intervals(video / INTERVALS_FILE, intervals)
-        write_heads(
-            video / HEADS_FILE,
-            [(t, k, x, y, 80.0) for t, points in targets.items() for k, (x, y) in points.items()],
-        )
+        heads = [(t, k, x, y, 80.0) for t, points in targets.items() for k, (x, y) in points.items()]
+        write_annotations(video, targets, heads, intervals)
         # Tracks: noisy copies, a swap after the first interval, a false positive now and then.
         track_ids = np.arange(1, n_targets + 1)
         lines = []

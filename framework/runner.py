@@ -17,6 +17,7 @@ from trackfw.engine import Engine, VideoRun, check_videos
 from trackfw.errors import UserError
 from trackfw.formats.run import write_run
 from trackfw.pipeline import Pipeline, load_pipeline
+from trackfw.progress import progress_bar
 from trackfw.records import VideoContext
 from trackfw.registry import Registry, unknown_name_message
 
@@ -89,24 +90,8 @@ def run_prepared(
             run = engine.run_video(video)
             results.append((run, write_run(run, prepared.pipeline, prepared.output / video.name)))
         return results
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeRemainingColumn,
-    )
-
     total = sum(video.n_frames for video in prepared.videos)
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("frames"),
-        TimeRemainingColumn(),
-        console=console,
-        transient=True,
-    ) as progress:
+    with progress_bar(console, "frames", "remaining") as progress:
         task = progress.add_task(prepared.pipeline.name, total=total)
         done = 0
         for video in prepared.videos:

@@ -170,3 +170,15 @@ def write_intervals(path: Path, intervals: Iterable[Interval]) -> None:
     """Write intervals.csv (1-based inclusive info-less frames)."""
     rows = ((i.a + 2, i.b, i.kind) for i in intervals)
     write_text(path, csv_text(INTERVALS_COLUMNS, rows, DECIMALS))
+
+
+def write_annotations(
+    folder: Path,
+    targets: dict[int, dict[int, tuple[float, float]]],
+    heads: Iterable[tuple[int, int, float, float, float]],
+    intervals: Iterable[Interval],
+) -> None:
+    """Write a video's gt.csv, heads.csv and intervals.csv into ``folder`` (0-based frames in)."""
+    write_targets(folder / GT_FILE, targets)
+    write_heads(folder / HEADS_FILE, heads)
+    write_intervals(folder / INTERVALS_FILE, intervals)

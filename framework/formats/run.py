@@ -35,7 +35,13 @@ from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw.atomic import write_json, write_text
 from trackfw.errors import UserError
 from trackfw.formats.mot import mot_track_text, read_mot_text, rows_by_frame
-from trackfw.formats.text import parse_finite, parse_integer, read_json, read_text
+from trackfw.formats.text import (
+    check_frame,
+    parse_finite,
+    parse_integer,
+    read_csv_rows,
+    read_json,
+)
 from trackfw.stages import STAGE_KINDS
 
 if TYPE_CHECKING:
@@ -322,72 +328,53 @@ def _parse_sizes(path: Path, line: int, text: str, count: int) -> FloatArray:
 def read_frames_csv(path: Path, n_frames: int | None = None) -> FrameRecords:
     """Read a run's frames.csv (1-based frames in the file, 0-based in the result)."""
     path = Path(path)
-    reader = csv.reader(io.StringIO(read_text(path, "the run's per-frame records")))
-    header = [name.strip() for name in next(reader, [])]
-    if tuple(header[: len(FRAMES_COLUMNS)]) != FRAMES_COLUMNS:
-        raise UserError(
-            f"{path}: line 1: header is {','.join(header)!r}; expected it to start with"
-            f" {','.join(FRAMES_COLUMNS)!r}."
-        )
-    frames: list[int] = []
-    statuses: list[str] = []
-    probabilities: list[float] = []
-    labels: list[bool] = []
-    detections: list[FloatArray] = []
-    sizes: list[FloatArray] = []
+    _, rows = read_csv_rows(path, FRAMES_COLUMNS, "the run's per-frame records")
+    parsed: list[tuple[int, str, float, bool, FloatArray, FloatArray]] = []
     seen: set[int] = set()
-    for line, values in enumerate(reader, start=2):
-        if not values or all(not value.strip() for value in values):
-            continue
-        if len(values) != len(header):
-            raise UserError(
-                f"{path}: line {line}: {len(values)} values; expected {len(header)} ({','.join(header)})."
-            )
-        row = dict(zip(header, (value.strip() for value in values), strict=True))
+    for line, row in rows:
         frame = parse_integer(path, line, "frame", row["frame"])
-        if frame < 1 or (n_frames is not None and frame > n_frames):
-            limit = f"1..{n_frames}" if n_frames is not None else ">= 1"
-            raise UserError(
-                f"{path}: line {line}: frame {frame} is outside the video; expected {limit}."
-            )
+        check_frame(path, line, frame, n_frames)
         if frame in seen:
             raise UserError(f"{path}: line {line}: frame {frame} appears twice.")
         seen.add(frame)
-        status = row["status"]
-        if status not in FRAME_STATUSES:
-            raise UserError(
-                f"{path}: line {line}: status is {status!r}; expected one of {', '.join(FRAME_STATUSES)}."
-            )
-        probability = (
-            math.nan
-            if not row["infoless_probability"]
-            else parse_finite(path, line, "infoless_probability", row["infoless_probability"])
-        )
-        label_text = row["infoless"]
-        if label_text not in ("0", "1") and not (status != "ok" and label_text == ""):
-            raise UserError(f"{path}: line {line}: infoless is {label_text!r}; expected 0 or 1.")
-        points = _parse_detections(path, line, row["detections"])
-        if row["n_detections"] != "":
-            count = parse_integer(path, line, "n_detections", row["n_detections"])
-            if count != len(points):
-                raise UserError(
-                    f"{path}: line {line}: n_detections is {count} but detections lists {len(points)} points."
-                )
-        frames.append(frame - 1)
-        statuses.append(status)
-        probabilities.append(probability)
-        labels.append(label_text == "1")
-        detections.append(points)
-        sizes.append(_parse_sizes(path, line, row.get(DETECTION_SIZES_COLUMN, ""), len(points)))
-    order = np.argsort(np.asarray(frames, dtype=np.int64), kind="stable")
+        parsed.append((frame - 1, *_frame_values(path, line, row)))
+    parsed.sort(key=lambda values: values[0])
     return FrameRecords(
-        frames=np.asarray(frames, dtype=np.int64)[order],
-        status=[statuses[i] for i in order],
-        infoless_probability=np.asarray(probabilities, dtype=np.float64)[order],
-        infoless=np.asarray(labels, dtype=bool)[order],
-        detections=[detections[i] for i in order],
-        detection_sizes=[sizes[i] for i in order],
+        frames=np.asarray([values[0] for values in parsed], dtype=np.int64),
+        status=[values[1] for values in parsed],
+        infoless_probability=np.asarray([values[2] for values in parsed], dtype=np.float64),
+        infoless=np.asarray([values[3] for values in parsed], dtype=bool),
+        detections=[values[4] for values in parsed],
+        detection_sizes=[values[5] for values in parsed],
     )
+
+
+def _frame_values(
+    path: Path, line: int, row: dict[str, str]
+) -> tuple[str, float, bool, FloatArray, FloatArray]:
+    """Status, info-less probability and label, ``(K, 2)`` points and ``(K,)`` sizes of a row."""
+    status = row["status"]
+    if status not in FRAME_STATUSES:
+        raise UserError(
+            f"{path}: line {line}: status is {status!r}; expected one of {', '.join(FRAME_STATUSES)}."
+        )
+    probability = (
+        math.nan
+        if not row["infoless_probability"]
+        else parse_finite(path, line, "infoless_probability", row["infoless_probability"])
+    )
+    label_text = row["infoless"]
+    if label_text not in ("0", "1") and not (status != "ok" and label_text == ""):
+        raise UserError(f"{path}: line {line}: infoless is {label_text!r}; expected 0 or 1.")
+    points = _parse_detections(path, line, row["detections"])
+    if row["n_detections"] != "":
+        count = parse_integer(path, line, "n_detections", row["n_detections"])
+        if count != len(points):
+            raise UserError(
+                f"{path}: line {line}: n_detections is {count} but detections lists {len(points)} points."
+            )
+    sizes = _parse_sizes(path, line, row.get(DETECTION_SIZES_COLUMN, ""), len(points))
+    return status, probability, label_text == "1", points, sizes
 
 
 @dataclass(frozen=True)

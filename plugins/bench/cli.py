@@ -124,17 +124,9 @@ def _run_with_progress(
 
     if quiet:
         return run_sweep(plan, runner, executor_name=executor_name)
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+    from trackfw.progress import progress_bar
 
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("jobs"),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-    ) as progress:
+    with progress_bar(console, "jobs", "elapsed") as progress:
         task = progress.add_task("bench", total=len(plan.jobs))
 
         def advance(result: Any) -> None:

@@ -13,14 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from trackfw.dataset import write_meta
-from trackfw.formats.annotations import (
-    GT_FILE,
-    HEADS_FILE,
-    INTERVALS_FILE,
-    write_heads,
-    write_intervals,
-    write_targets,
-)
+from trackfw.formats.annotations import write_annotations
 from trackfw.records import Interval
 
 
@@ -88,10 +81,10 @@ def make_points_video(
             if inside[person]
         )
     directory.mkdir(parents=True, exist_ok=True)
-    write_targets(directory / GT_FILE, targets)
-    write_heads(directory / HEADS_FILE, heads)
-    write_intervals(
-        directory / INTERVALS_FILE,
+    write_annotations(
+        directory,
+        targets,
+        heads,
         [Interval(a=first - 2, b=last, kind="sky") for first, last in intervals],
     )
     write_meta(

@@ -42,14 +42,7 @@ from trackfw.atomic import atomic_open, write_text
 from trackfw.dataset import IMAGE_FOLDER, META_FILE, POSES_FILE, VIDEO_FILE, write_meta
 from trackfw.errors import UserError
 from trackfw.formats import HEAD_FRACTION, HEAD_SIZE_FRACTION, body_head_points, body_heads
-from trackfw.formats.annotations import (
-    GT_FILE,
-    HEADS_FILE,
-    INTERVALS_FILE,
-    write_heads,
-    write_intervals,
-    write_targets,
-)
+from trackfw.formats.annotations import write_annotations
 from trackfw.records import Interval
 from trackfw_plugins.datasets.mot import MotSequence, load_mot_sequence, read_frame
 from trackfw_plugins.datasets.wear_camera import (
@@ -499,10 +492,10 @@ def render_video(
     finally:
         if writer is not None:
             writer.release()
-    write_targets(folder / GT_FILE, targets)
-    write_heads(folder / HEADS_FILE, heads)
-    write_intervals(
-        folder / INTERVALS_FILE,
+    write_annotations(
+        folder,
+        targets,
+        heads,
         [Interval(a=view.first - 1, b=view.last + 1, kind=view.kind) for view in plan.views],
     )
     write_text(folder / POSES_FILE, _poses_text(pose_rows))

@@ -57,7 +57,8 @@ def wear_command(
 ) -> None:
     """Make virtual-wearer videos (sway, pose jumps, sky/group/path intervals) of a MOT sequence."""
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+    from trackfw.progress import progress_bar
 
     if intervals is not None and intervals < 1:
         raise UserError(f"--intervals is {intervals}; expected at least 1.")
@@ -73,13 +74,7 @@ def wear_command(
         frame_format=frame_format,
     )
     console = Console(stderr=True)
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        console=console,
-        transient=True,
-    ) as bar:
+    with progress_bar(console) as bar:
         tasks: dict[str, Any] = {}
 
         def report(name: str, done: int, total: int) -> None:

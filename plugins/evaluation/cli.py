@@ -38,9 +38,9 @@ def eval_command(
 ) -> None:
     """MOTA, MOTP, MOTA-In, MOTP-In, IDF1, HOTA and info-less precision/recall/F1 of a runs folder."""
     from rich.console import Console
-    from rich.progress import Progress
 
     from trackfw.dataset import list_videos
+    from trackfw.progress import progress_bar
     from trackfw_plugins.evaluation.report import (
         EvalSettings,
         evaluate_dataset,
@@ -55,7 +55,7 @@ def eval_command(
     )
     console = Console()
     n_videos = len(list_videos(dataset))
-    with Progress(console=console, transient=True) as progress:
+    with progress_bar(console, "videos", "remaining") as progress:
         task = progress.add_task("evaluating videos", total=n_videos)
         evaluation = evaluate_dataset(
             dataset, runs, settings, progress=lambda _name: progress.advance(task)

@@ -27,14 +27,7 @@ from trackfw.arrays import ImageArray
 from trackfw.atomic import atomic_open, write_text
 from trackfw.dataset import IMAGE_FOLDER, META_FILE, POSES_FILE, VIDEO_FILE, write_meta
 from trackfw.errors import UserError
-from trackfw.formats.annotations import (
-    GT_FILE,
-    HEADS_FILE,
-    INTERVALS_FILE,
-    write_heads,
-    write_intervals,
-    write_targets,
-)
+from trackfw.formats.annotations import write_annotations
 
 from .presets import VideoPlan, demo_plan
 from .render import (
@@ -357,9 +350,7 @@ def generate_video(plan: VideoPlan, out_dir: Path, output_format: str = "mp4",
         finally:
             if writer is not None:
                 writer.release()
-        write_targets(temporary / GT_FILE, simulation.targets)
-        write_heads(temporary / HEADS_FILE, simulation.heads)
-        write_intervals(temporary / INTERVALS_FILE, simulation.intervals)
+        write_annotations(temporary, simulation.targets, simulation.heads, simulation.intervals)
         write_text(temporary / POSES_FILE, _poses_text(simulation))
         write_meta(temporary / META_FILE, _meta(simulation, output_format))
         if preview_dir is not None and kept:
