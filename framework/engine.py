@@ -5,56 +5,85 @@ For each frame: detect, classify, and then either skip it (info-less), step the 
 the gap matcher where the targets are and re-initialise the tracker there. Targets are fixed by
 the first frame's annotation and never created or deleted; a target outside the image is not
 reported on that frame.
+
+The pieces: :class:`trackfw.front.FrameFront` yields one observation per frame (live stages or
+a stage-cache replay), :class:`trackfw.segment.Segment` holds the targets between intervals and
+builds the gap problem, and ``_OnlineLoop`` here is the interval state machine; each gap becomes
+a :class:`GapRecord` over the gap matcher's solution.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from trackfw.arrays import FloatArray
+from trackfw.arrays import FloatArray, IntArray
 from trackfw.dataset import frame_source_path
 from trackfw.errors import UserError
+from trackfw.front import FrameFront, FrameRecord, Observation
 from trackfw.pipeline import Pipeline
-from trackfw.records import NO_MATCH, Detections, FrameData, GapProblem, Interval, VideoContext
+from trackfw.records import NO_MATCH, Detections, GapSolution, Interval, VideoContext
 from trackfw.registry import Registry
-from trackfw.stage_cache import CACHED_KINDS, StageCache, StageReplay
+from trackfw.segment import Segment
+from trackfw.stage_cache import CACHED_KINDS, StageCache
 from trackfw.stages import STAGE_KINDS, BatchStages, PipelineStages, Stage
-from trackfw.video_io import iter_frames
 
 ProgressCallback = Callable[[int], None]
 
 
 @dataclass
-class FrameRecord:
-    """What happened on one frame (one row of frames.csv)."""
-
-    t: int
-    status: str
-    probability: float | None = None
-    infoless: bool | None = None
-    detections: Detections | None = None
-    milliseconds: dict[str, float] = field(default_factory=dict)
-
-
-@dataclass
 class GapRecord:
-    """One interval crossing (one entry of gaps.json)."""
+    """One interval crossing (one entry of gaps.json), a view of the gap matcher's solution.
+
+    Attributes:
+        interval: the interval, ``a`` to ``b`` (``b = n_frames`` when the video ends inside it).
+        target_ids: the targets, in the order of the solution's arrays.
+        solution: the gap matcher's solution, or None when the video ended inside the interval.
+        milliseconds: the gap matcher's time.
+    """
 
     interval: Interval
-    resolved: bool
     target_ids: list[int]
-    positions: list[list[float]] = field(default_factory=list)
-    matched_detection: list[int | None] = field(default_factory=list)
-    cost: float | None = None
-    chosen: str | None = None
+    solution: GapSolution | None = None
     milliseconds: float = 0.0
-    diagnostics: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def resolved(self) -> bool:
+        """Whether the targets were re-linked on a frame b."""
+        return self.solution is not None
+
+    @property
+    def positions(self) -> list[list[float]]:
+        """Per target, ``[x, y]`` on frame b (rounded to 1/1000 pixel)."""
+        return [] if self.solution is None else np.round(self.solution.positions, 3).tolist()
+
+    @property
+    def matched_detection(self) -> list[int | None]:
+        """Per target, the stable index of its detection on frame b, or None."""
+        if self.solution is None:
+            return []
+        return [None if int(d) == NO_MATCH else int(d) for d in self.solution.matched_detection]
+
+    @property
+    def cost(self) -> float | None:
+        """The solution's cost (its meaning depends on the gap matcher)."""
+        cost = None if self.solution is None else self.solution.cost
+        return None if cost is None else float(cost)
+
+    @property
+    def chosen(self) -> str | None:
+        """The label of the chosen prediction candidate."""
+        return None if self.solution is None else self.solution.chosen
+
+    @property
+    def diagnostics(self) -> dict[str, Any]:
+        """The gap matcher's details."""
+        return {} if self.solution is None else self.solution.diagnostics
 
 
 @dataclass
@@ -122,14 +151,6 @@ def _initial_targets(
     return ids, detections.points.copy(), "detections"
 
 
-def _histories(segment: list[FloatArray], count: int) -> list[FloatArray]:
-    """Per target ``(n, 2)`` positions from per frame ``(K, 2)`` positions."""
-    if not segment:
-        return [np.zeros((0, 2)) for _ in range(count)]
-    stacked = np.stack(segment)  # (n, K, 2)
-    return [stacked[:, k, :].copy() for k in range(count)]
-
-
 def _inside_image(
     reported: list[tuple[int, FloatArray]], target_ids: np.ndarray, width: int, height: int
 ) -> list[tuple[int, int, float, float]]:
@@ -182,153 +203,133 @@ class Engine:
         stages = self.pipeline.build()
         assert isinstance(stages, PipelineStages)
         _check_ground_truth(stages, video)
-        replay: StageReplay | None = None
-        cache_key = ""
-        if cache is not None:
-            cache_key = cache.key(self.pipeline, video, self.registry)
-            replay = cache.load(cache_key, video.n_frames, video.name)
-        live = {
-            kind: stage
-            for kind, stage in stages.by_kind().items()
-            if replay is None or kind not in CACHED_KINDS
-        }
-        for stage in live.values():
-            for candidate in stage.with_nested():
-                candidate.start(video)
-        detector, classifier = stages.detector, stages.classifier
-        tracker, gap_matcher = stages.tracker, stages.gap_matcher
-        decode = stages_need_pixels(live)
-        width, height = video.width, video.height
-        clock = time.perf_counter
-
-        frames: list[FrameRecord] = []
-        reported: list[tuple[int, FloatArray]] = []
-        gaps: list[GapRecord] = []
-        target_ids = np.zeros(0, dtype=np.int64)
-        # Positions of every target on each normal frame of the current segment.
-        segment: list[FloatArray] = []
-        initialised_from = ""
-        last_normal_t: int | None = None
-        last_normal_image: np.ndarray | None = None
-        last_normal_detections: Detections | None = None
-        interval_open = False
-        started = clock()
-
-        for t, image, status in iter_frames(video, decode=decode):
-            if progress is not None:
-                progress(t)
-            if replay is not None and status == "ok":
-                status = replay.status_of(t)
-            if status != "ok":
-                frames.append(FrameRecord(t, status))
-                continue
-            first = last_normal_t is None
-            frame = FrameData(t, image, video, first)
-            record = FrameRecord(t, "ok")
-            if replay is None:
-                tick = clock()
-                detections = detector.detect(frame)
-                # The stable index is the position in the detector's own output.
-                if not np.array_equal(detections.index, np.arange(len(detections))):
-                    detections = Detections(detections.points, detections.scores, detections.boxes)
-                tock = clock()
-                record.milliseconds["detector"] = (tock - tick) * 1e3
-                decision = classifier.classify(frame, detections)
-                tick = clock()
-                record.milliseconds["classifier"] = (tick - tock) * 1e3
-                probability, said_infoless = float(decision.probability), bool(decision.infoless)
-            else:
-                detections, probability, said_infoless, detector_ms, classifier_ms = replay.frame(t)
-                record.milliseconds["detector"] = detector_ms
-                record.milliseconds["classifier"] = classifier_ms
-                tick = clock()
-            infoless = said_infoless and not first
-            record.probability = probability
-            record.infoless = infoless
-            record.detections = detections
-            frames.append(record)
-
-            if first:
-                target_ids, positions, initialised_from = _initial_targets(
-                    video, self.pipeline.engine.init, t, detections
-                )
-                tracker.initialise(t, target_ids, positions)
-                record.milliseconds["tracker"] = (clock() - tick) * 1e3
-            elif infoless:
-                interval_open = True
-                continue
-            elif interval_open:
-                assert last_normal_t is not None
-                interval = Interval(a=last_normal_t, b=t)
-                problem = GapProblem(
-                    interval=interval,
-                    target_ids=target_ids,
-                    histories=_histories(segment, len(target_ids)),
-                    states=tracker.states(),
-                    detections=detections,
-                    frame_a=last_normal_image,
-                    detections_a=last_normal_detections,
-                    frame_b=image,
-                    video=video,
-                )
-                solution = gap_matcher.match(problem)
-                tock = clock()
-                record.milliseconds["gap_matcher"] = (tock - tick) * 1e3
-                tracker.reinitialise(t, solution.positions, solution.matched_detection)
-                record.milliseconds["tracker"] = (clock() - tock) * 1e3
-                gaps.append(
-                    GapRecord(
-                        interval=interval,
-                        resolved=True,
-                        target_ids=[int(i) for i in target_ids],
-                        positions=np.round(solution.positions, 3).tolist(),
-                        matched_detection=[
-                            None if int(d) == NO_MATCH else int(d)
-                            for d in solution.matched_detection
-                        ],
-                        cost=None if solution.cost is None else float(solution.cost),
-                        chosen=solution.chosen,
-                        milliseconds=record.milliseconds["gap_matcher"],
-                        diagnostics=solution.diagnostics,
-                    )
-                )
-                segment = []
-                interval_open = False
-            else:
-                tracker.step(t, detections)
-                record.milliseconds["tracker"] = (clock() - tick) * 1e3
-
-            positions = tracker.positions()
-            segment.append(positions)
-            reported.append((t, positions))
-            last_normal_t = t
-            last_normal_detections = detections
-            if decode:
-                last_normal_image = image
-
-        if interval_open and last_normal_t is not None:
-            # The video ends inside an interval: there is no frame b to re-link on.
-            gaps.append(
-                GapRecord(
-                    interval=Interval(a=last_normal_t, b=video.n_frames),
-                    resolved=False,
-                    target_ids=[int(i) for i in target_ids],
-                )
-            )
-        if last_normal_t is None:
-            raise UserError(f"{video.path}: no frame could be read; nothing to track.")
-        seconds = clock() - started
+        key = cache.key(self.pipeline, video, self.registry) if cache is not None else ""
+        replay = cache.load(key, video.n_frames, video.name) if cache is not None else None
+        live = _start_live_stages(stages, video, replay is not None)
+        front = FrameFront(
+            video, stages.detector, stages.classifier, replay, stages_need_pixels(live), progress
+        )
+        loop = _OnlineLoop(stages, video, self.pipeline.engine.init)
+        started = time.perf_counter()
+        for observation in front:
+            loop.observe(observation)
+        run = loop.finish(time.perf_counter() - started)
         if cache is not None and replay is None:
-            cache.store(cache_key, frames, video.name)
+            cache.store(key, run.frames, video.name)
+        return run
+
+
+def _start_live_stages(
+    stages: PipelineStages, video: VideoContext, replaying: bool
+) -> dict[str, Stage[Any]]:
+    """Call ``start`` on every stage that will run (not the replayed ones); return them."""
+    live = {
+        kind: stage
+        for kind, stage in stages.by_kind().items()
+        if not (replaying and kind in CACHED_KINDS)
+    }
+    for stage in live.values():
+        for candidate in stage.with_nested():
+            candidate.start(video)
+    return live
+
+
+class _OnlineLoop:
+    """The interval state machine over the front's observations (ALGORITHMS.md section 0).
+
+    Before the first readable frame there is no segment. The first one initialises the targets.
+    After it, an informative frame steps the tracker, an info-less one opens an interval (the
+    segment's last frame is ``a``), and the first informative frame after an interval (``b``)
+    asks the gap matcher to re-link the targets and starts a new segment.
+    """
+
+    def __init__(self, stages: PipelineStages, video: VideoContext, init: str) -> None:
+        self.stages = stages
+        self.video = video
+        self.init = init
+        self.frames: list[FrameRecord] = []
+        self.gaps: list[GapRecord] = []
+        self.reported: list[tuple[int, FloatArray]] = []
+        self.segment: Segment | None = None
+        self.initialised_from = ""
+        self.interval_open = False
+
+    def observe(self, observation: Observation) -> None:
+        """Advance the state machine by one frame."""
+        self.frames.append(observation.record)
+        if not observation.readable:
+            return
+        if self.segment is None:
+            self.segment = self._initialise(observation)
+        elif observation.infoless:
+            self.interval_open = True
+            return
+        elif self.interval_open:
+            self.segment = self._relink(self.segment, observation)
+            self.interval_open = False
+        else:
+            self.stages.tracker.step(observation.t, observation.detections)
+            _time(observation, "tracker", observation.done_at)
+        positions = self.stages.tracker.positions()
+        self.segment.add(observation, positions)
+        self.reported.append((observation.t, positions))
+
+    def _initialise(self, observation: Observation) -> Segment:
+        target_ids, positions, self.initialised_from = _initial_targets(
+            self.video, self.init, observation.t, observation.detections
+        )
+        self.stages.tracker.initialise(observation.t, target_ids, positions)
+        _time(observation, "tracker", observation.done_at)
+        return Segment(target_ids)
+
+    def _relink(self, segment: Segment, b: Observation) -> Segment:
+        """Solve the gap from the segment's frame ``a`` to ``b``; the new segment starts at b."""
+        problem = segment.gap_problem(b, self.stages.tracker.states(), self.video)
+        solution = self.stages.gap_matcher.match(problem)
+        matched_at = _time(b, "gap_matcher", b.done_at)
+        self.stages.tracker.reinitialise(b.t, solution.positions, solution.matched_detection)
+        _time(b, "tracker", matched_at)
+        self.gaps.append(
+            GapRecord(
+                problem.interval,
+                _ids(segment.target_ids),
+                solution,
+                b.record.milliseconds["gap_matcher"],
+            )
+        )
+        return segment.next()
+
+    def finish(self, seconds: float) -> VideoRun:
+        """The run once every frame was observed."""
+        segment = self.segment
+        if segment is None:
+            raise UserError(f"{self.video.path}: no frame could be read; nothing to track.")
+        if self.interval_open:
+            # The video ends inside an interval: there is no frame b to re-link on.
+            interval = segment.interval_to(self.video.n_frames)
+            self.gaps.append(GapRecord(interval, _ids(segment.target_ids)))
         return VideoRun(
-            video=video,
-            target_ids=[int(i) for i in target_ids],
-            tracks=_inside_image(reported, target_ids, width, height),
-            frames=frames,
-            gaps=gaps,
-            initialised_from=initialised_from,
+            video=self.video,
+            target_ids=_ids(segment.target_ids),
+            tracks=_inside_image(
+                self.reported, segment.target_ids, self.video.width, self.video.height
+            ),
+            frames=self.frames,
+            gaps=self.gaps,
+            initialised_from=self.initialised_from,
             seconds=seconds,
         )
+
+
+def _time(observation: Observation, kind: str, since: float) -> float:
+    """Record the milliseconds of ``kind`` on the frame since ``since``; return the time now."""
+    now = time.perf_counter()
+    observation.record.milliseconds[kind] = (now - since) * 1e3
+    return now
+
+
+def _ids(target_ids: IntArray) -> list[int]:
+    return [int(i) for i in target_ids]
 
 
 __all__ = ["STAGE_KINDS", "Engine", "FrameRecord", "GapRecord", "VideoRun"]

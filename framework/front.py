@@ -1,0 +1,149 @@
+"""The frame front of the online loop: one observation per frame, live or replayed.
+
+The front reads the video and turns each frame into an :class:`Observation`: its detections and
+its info-less decision, with the milliseconds they took. Live, the detector and the classifier
+run; from a stage cache, their recorded outputs are replayed. Either way the first readable frame
+(the one the targets are initialised on) is informative, whatever the classifier said.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from trackfw.arrays import UInt8Array
+from trackfw.records import Detections, FrameData, VideoContext
+from trackfw.stage_cache import StageReplay
+from trackfw.stages import Classifier, Detector
+from trackfw.video_io import iter_frames
+
+
+@dataclass
+class FrameRecord:
+    """What happened on one frame (one row of frames.csv)."""
+
+    t: int
+    status: str
+    probability: float | None = None
+    infoless: bool | None = None
+    detections: Detections | None = None
+    milliseconds: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class Observation:
+    """One frame as the front saw it.
+
+    Attributes:
+        record: its frames.csv row; the tracking stages add their milliseconds to it.
+        image: ``(H, W, 3)`` uint8 BGR pixels, or None when the pipeline decodes none.
+        first: whether it is the first readable frame (the targets are initialised on it).
+        done_at: ``time.perf_counter()`` when the front finished with it (tracking timings
+            start there).
+    """
+
+    record: FrameRecord
+    image: UInt8Array | None = None
+    first: bool = False
+    done_at: float = 0.0
+
+    @property
+    def t(self) -> int:
+        """The 0-based frame index."""
+        return self.record.t
+
+    @property
+    def readable(self) -> bool:
+        """Whether the frame could be read (and so was detected and classified)."""
+        return self.record.status == "ok"
+
+    @property
+    def infoless(self) -> bool:
+        """The final decision: info-less (never on the first frame)."""
+        return bool(self.record.infoless)
+
+    @property
+    def detections(self) -> Detections:
+        """The frame's detections (empty on an unreadable frame)."""
+        return self.record.detections if self.record.detections is not None else Detections.empty()
+
+
+def _stable_index(detections: Detections) -> Detections:
+    """``detections`` whose index is the position in the detector's own output."""
+    if np.array_equal(detections.index, np.arange(len(detections))):
+        return detections
+    return Detections(detections.points, detections.scores, detections.boxes)
+
+
+class FrameFront:
+    """Yields one :class:`Observation` per frame of a video, live or from a stage replay.
+
+    Args:
+        video: the video.
+        detector: the live detector (unused when ``replay`` is given).
+        classifier: the live classifier (unused when ``replay`` is given).
+        replay: recorded detector and classifier outputs, or None to run them.
+        decode: whether to read pixels (some stage needs them).
+        progress: called with each frame index before the frame is processed.
+    """
+
+    def __init__(
+        self,
+        video: VideoContext,
+        detector: Detector[Any],
+        classifier: Classifier[Any],
+        replay: StageReplay | None,
+        decode: bool,
+        progress: Callable[[int], None] | None = None,
+    ) -> None:
+        self.video = video
+        self.progress = progress
+        self.detector = detector
+        self.classifier = classifier
+        self.replay = replay
+        self.decode = decode
+
+    def __iter__(self) -> Iterator[Observation]:
+        first = True
+        for t, image, status in iter_frames(self.video, decode=self.decode):
+            if self.progress is not None:
+                self.progress(t)
+            if self.replay is not None and status == "ok":
+                status = self.replay.status_of(t)
+            if status != "ok":
+                yield Observation(FrameRecord(t, status), image, done_at=time.perf_counter())
+                continue
+            yield self._observe(t, image, first)
+            first = False
+
+    def _observe(self, t: int, image: UInt8Array | None, first: bool) -> Observation:
+        record = FrameRecord(t, "ok")
+        if self.replay is None:
+            frame = FrameData(t, image, self.video, first)
+            tick = time.perf_counter()
+            detections = _stable_index(self.detector.detect(frame))
+            tock = time.perf_counter()
+            decision = self.classifier.classify(frame, detections)
+            done = time.perf_counter()
+            record.milliseconds["detector"] = (tock - tick) * 1e3
+            record.milliseconds["classifier"] = (done - tock) * 1e3
+            probability, said_infoless = float(decision.probability), bool(decision.infoless)
+        else:
+            detections, probability, said_infoless, detector_ms, classifier_ms = self.replay.frame(
+                t
+            )
+            record.milliseconds["detector"] = detector_ms
+            record.milliseconds["classifier"] = classifier_ms
+            done = time.perf_counter()
+        record.probability = probability
+        # The first frame carries the annotation: it is informative whatever was said.
+        record.infoless = said_infoless and not first
+        record.detections = detections
+        return Observation(record, image, first, done)
+
+
+__all__ = ["FrameFront", "FrameRecord", "Observation"]

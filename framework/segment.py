@@ -1,0 +1,83 @@
+"""A segment: the stretch of informative frames between two info-less intervals.
+
+The segment knows the fixed set of targets (their ids), where each was on every frame of the
+segment (its history, which the motion predictors fit), and its last informative frame, which
+becomes frame ``a`` when an interval begins. The gap problem is built from it; after the interval
+a new segment starts on frame ``b`` for the same targets.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from trackfw.arrays import FloatArray, IntArray
+from trackfw.front import Observation
+from trackfw.records import GapProblem, Interval, TargetState, VideoContext
+
+
+@dataclass
+class Segment:
+    """The targets through one segment.
+
+    Attributes:
+        target_ids: ``(K,)`` identities, in the order of every per-target array.
+        positions: per frame of the segment, oldest first, ``(K, 2)`` tracked positions.
+        last: the segment's latest frame (frame ``a`` once an interval begins), or None before
+            its first frame.
+    """
+
+    target_ids: IntArray
+    positions: list[FloatArray] = field(default_factory=list)
+    last: Observation | None = None
+
+    def add(self, observation: Observation, positions: FloatArray) -> None:
+        """Record the ``(K, 2)`` tracked positions on an informative frame."""
+        self.positions.append(positions)
+        self.last = observation
+
+    def histories(self) -> list[FloatArray]:
+        """Per target, ``(n, 2)`` positions over the segment, oldest first."""
+        if not self.positions:
+            return [np.zeros((0, 2)) for _ in range(len(self.target_ids))]
+        stacked = np.stack(self.positions)  # (n, K, 2)
+        return [stacked[:, k, :].copy() for k in range(len(self.target_ids))]
+
+    def interval_to(self, b: int) -> Interval:
+        """The interval from this segment's last frame ``a`` to frame ``b``."""
+        if self.last is None:
+            raise ValueError("an interval needs a segment with at least one frame")
+        return Interval(a=self.last.t, b=b)
+
+    def gap_problem(
+        self, b: Observation, states: list[TargetState], video: VideoContext
+    ) -> GapProblem:
+        """The gap matcher's problem from this segment's frame ``a`` to frame ``b``.
+
+        Args:
+            b: the first informative frame after the interval.
+            states: the tracker's state of every target at ``a``.
+            video: the video.
+        """
+        a = self.last
+        if a is None:
+            raise ValueError("a gap problem needs a segment with at least one frame")
+        return GapProblem(
+            interval=self.interval_to(b.t),
+            target_ids=self.target_ids,
+            histories=self.histories(),
+            states=states,
+            detections=b.detections,
+            frame_a=a.image,
+            detections_a=a.detections,
+            frame_b=b.image,
+            video=video,
+        )
+
+    def next(self) -> Segment:
+        """A new, empty segment for the same targets (after an interval)."""
+        return Segment(self.target_ids)
+
+
+__all__ = ["Segment"]

@@ -1,0 +1,73 @@
+"""The pieces of the online loop: the frame front and the segment."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from trackfw.dataset import load_video
+from trackfw.front import FrameFront, FrameRecord, Observation
+from trackfw.records import ClassifierDecision, Detections, FrameData, TargetState, VideoContext
+from trackfw.segment import Segment
+from trackfw.stages import Classifier, Detector
+
+
+class EveryFrameInfoless(Classifier):
+    """Says every frame is info-less, and remembers which frames it was told were first."""
+
+    name = "always-infoless"
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.first_frames: list[int] = []
+
+    def classify(self, frame: FrameData, detections: Detections) -> ClassifierDecision:
+        if frame.first:
+            self.first_frames.append(frame.t)
+        return ClassifierDecision(probability=0.9, infoless=True)
+
+
+class TwoPoints(Detector):
+    """Two detections whose index the detector scrambled."""
+
+    name = "two-points"
+
+    def detect(self, frame: FrameData) -> Detections:
+        return Detections(np.array([[1.0, 2.0], [3.0, 4.0]]), np.ones(2), index=np.array([7, 9]))
+
+
+def test_front_keeps_the_first_frame_informative_and_reindexes_detections(points_video) -> None:
+    video = load_video(points_video("v", n_frames=5, intervals=[]))
+    classifier = EveryFrameInfoless()
+    seen: list[int] = []
+    observations = list(FrameFront(video, TwoPoints(), classifier, None, False, seen.append))
+    assert seen == [0, 1, 2, 3, 4]
+    assert [o.infoless for o in observations] == [False, True, True, True, True]
+    assert [o.first for o in observations] == [True, False, False, False, False]
+    assert classifier.first_frames == [0]
+    assert observations[0].record.probability == 0.9
+    assert observations[2].detections.index.tolist() == [0, 1]
+    assert {"detector", "classifier"} <= set(observations[0].record.milliseconds)
+
+
+def _observation(t: int, points: list[list[float]]) -> Observation:
+    image = np.full((4, 4, 3), t, dtype=np.uint8)
+    return Observation(FrameRecord(t, "ok", detections=Detections.from_points(points)), image)
+
+
+def test_segment_histories_and_gap_problem_come_from_its_frames() -> None:
+    segment = Segment(np.array([4, 8], dtype=np.int64))
+    assert [h.shape for h in segment.histories()] == [(0, 2), (0, 2)]
+    segment.add(_observation(0, [[0.0, 0.0]]), np.array([[0.0, 0.0], [10.0, 0.0]]))
+    segment.add(_observation(1, [[1.0, 0.0]]), np.array([[1.0, 0.0], [11.0, 1.0]]))
+    histories = segment.histories()
+    assert histories[1].tolist() == [[10.0, 0.0], [11.0, 1.0]]
+    b = _observation(9, [[5.0, 5.0], [6.0, 6.0]])
+    states = [TargetState(4, np.array([1.0, 0.0])), TargetState(8, np.array([11.0, 1.0]))]
+    problem = segment.gap_problem(b, states, VideoContext("v", "v", 10, 4, 4))
+    assert (problem.interval.a, problem.interval.b, problem.horizon) == (1, 9, 8)
+    assert problem.frame_a is not None and int(problem.frame_a[0, 0, 0]) == 1
+    assert problem.frame_b is not None and int(problem.frame_b[0, 0, 0]) == 9
+    assert problem.detections_a is not None and problem.detections_a.points.tolist() == [[1.0, 0.0]]
+    assert len(problem.detections) == 2 and problem.target_ids.tolist() == [4, 8]
+    after = segment.next()
+    assert after.target_ids is segment.target_ids and after.positions == [] and after.last is None
