@@ -235,7 +235,7 @@ def _start_live_stages(
 
 
 class _OnlineLoop:
-    """The interval state machine over the front's observations (ALGORITHMS.md section 0).
+    """The interval state machine (docs/algorithms/index.md#the-online-loop).
 
     Before the first readable frame there is no segment. The first one initialises the targets.
     After it, an informative frame steps the tracker, an info-less one opens an interval (the
