@@ -5,8 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from trackfw.records import Detections, GapProblem, Interval, TargetState, VideoContext
+from trackfw.records import (
+    Detections,
+    GapProblem,
+    Interval,
+    Prediction,
+    TargetState,
+    VideoContext,
+)
 from trackfw.registry import load_registry
+from trackfw.stages import Predictor
 
 COLOURS = [(200, 40, 40), (40, 200, 40), (40, 40, 200), (200, 200, 40)]
 
@@ -72,3 +80,50 @@ def test_window_tps_rpm_deep_appearance_is_smallest_for_the_same_person() -> Non
     assert distances is not None and distances.shape == (4, 4)
     assert distances.argmin(axis=1).tolist() == [order.index(i) for i in range(4)]
     assert matcher.match(problem).diagnostics["appearance_used"] is True
+
+
+class FixedCandidates(Predictor):
+    """Returns the candidates it was given (a stand-in for AR orders)."""
+
+    name = "fixed"
+
+    def __init__(self, candidates: list[Prediction]) -> None:
+        super().__init__()
+        self.candidates = candidates
+
+    def predict(self, problem: GapProblem) -> list[Prediction]:
+        return self.candidates
+
+
+@pytest.mark.parametrize("descriptor", ["lomo", "gog"])
+def test_reid_scores_every_candidate_and_keeps_the_one_that_finds_the_undetected_person(
+    descriptor: str,
+) -> None:
+    from trackfw_plugins.gap_matchers.reid import ReidGapMatcher, ReidParams
+
+    at_a = np.array([[100.0, 80.0], [220.0, 90.0], [340.0, 85.0], [460.0, 95.0]])
+    at_b = at_a + np.array([30.0, 20.0])
+    video = VideoContext(name="v", path="v", n_frames=10, width=640, height=360)
+    # Target 4 is on frame b but not detected: only the other three are.
+    problem = GapProblem(
+        interval=Interval(2, 8),
+        target_ids=np.arange(1, 5),
+        histories=[p[None, :] for p in at_a],
+        states=[TargetState(i + 1, p, np.zeros(2)) for i, p in enumerate(at_a)],
+        detections=Detections.from_points(at_b[:3]),
+        frame_a=_frame(at_a, COLOURS, 1),
+        frame_b=_frame(at_b, COLOURS, 2),
+        video=video,
+    )
+    astray = at_b.copy()
+    astray[3] = [600.0, 40.0]  # background, nobody there
+    candidates = [Prediction("ar1", astray), Prediction("ar2", at_b.copy())]
+    matcher = ReidGapMatcher(
+        ReidParams(descriptor=descriptor), predictor=FixedCandidates(candidates)
+    )
+    solution = matcher.match(problem)
+    assert solution.matched_detection.tolist() == [0, 1, 2, -1]
+    assert solution.chosen == "ar2" and np.allclose(solution.positions[3], at_b[3])
+    costs = solution.diagnostics["candidates"]
+    assert set(costs) == {"ar1", "ar2"} and costs["ar2"] < costs["ar1"]
+    assert solution.cost == pytest.approx(costs["ar2"], abs=1e-6)
