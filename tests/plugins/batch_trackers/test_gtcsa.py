@@ -96,3 +96,15 @@ def test_kmeans_is_deterministic_and_separates_far_groups() -> None:
     assert labels.tolist() == kmeans(points, 2).tolist()
     assert len(set(labels[:5].tolist())) == 1 and len(set(labels[5:].tolist())) == 1
     assert labels[0] != labels[5]
+
+
+def test_one_group_follows_a_smoothly_warped_grid() -> None:
+    # A 3 x 4 grid, 40 px apart, moved by 35 px and bent: the spline explains it as one group.
+    grid = np.stack(np.meshgrid(np.arange(4) * 40.0, np.arange(3) * 40.0), -1).reshape(-1, 2)
+    grid += 300.0
+    relative = (grid - grid.mean(axis=0)) / 60.0
+    bend = np.column_stack([8 * relative[:, 1] ** 2, 6 * relative[:, 0] * relative[:, 1]])
+    order = np.random.default_rng(1).permutation(len(grid))
+    observed = (grid + np.array([35.0, 0.0]) + bend)[order]
+    matched = associate_frame(grid, observed, GtcsaParams(groups=1), gate=50.0, join=150.0)
+    assert (order[matched] == np.arange(len(grid))).all()
