@@ -1,7 +1,10 @@
 """The batch-tracker stages: the engine's per-frame detections in, the algorithm cores called.
 
 Every stage turns the detections into the paper's input (``box_size`` px square boxes centred on
-the head points, score 1 or the detector's score) and calls its algorithm module. See
+the head points, score 1 or the detector's score) and calls its algorithm module with BLAS held to
+one thread: the cores solve thousands of tiny systems (SMOT's least squares, GTCSA's splines), for
+which a multi-threaded BLAS mostly waits on its own threads (SMOT ran 5x slower on a busy 2-core
+machine). See
 ``docs/algorithms/batch-trackers.md#dpnms`` and the sections after it.
 """
 
@@ -20,6 +23,7 @@ from trackfw_plugins.batch_trackers.dpnms import DpnmsParams, track_dpnms
 from trackfw_plugins.batch_trackers.gtcsa import GtcsaParams, track_gtcsa
 from trackfw_plugins.batch_trackers.smot import SmotParams, track_smot
 from trackfw_plugins.batch_trackers.tracks import PAPER_BOX_SIZE, VideoDetections
+from trackfw_plugins.maths.gog import single_threaded_blas
 
 
 class BatchInputParams(StageParams):
@@ -81,7 +85,8 @@ class DpnmsTracker(BatchTracker[DpnmsStageParams]):
     name = "dpnms"
 
     def track(self, detections: Sequence[Detections], video: VideoContext) -> Tracks:
-        return track_dpnms(video_detections(detections, video, self.params), self.params)
+        with single_threaded_blas():
+            return track_dpnms(video_detections(detections, video, self.params), self.params)
 
 
 class ByteTrackTracker(BatchTracker[ByteTrackStageParams]):
@@ -91,7 +96,8 @@ class ByteTrackTracker(BatchTracker[ByteTrackStageParams]):
 
     def track(self, detections: Sequence[Detections], video: VideoContext) -> Tracks:
         table = video_detections(detections, video, self.params)
-        return track_bytetrack(table, video.fps, self.params)
+        with single_threaded_blas():
+            return track_bytetrack(table, video.fps, self.params)
 
 
 class SmotTracker(BatchTracker[SmotStageParams]):
@@ -100,7 +106,8 @@ class SmotTracker(BatchTracker[SmotStageParams]):
     name = "smot"
 
     def track(self, detections: Sequence[Detections], video: VideoContext) -> Tracks:
-        return track_smot(video_detections(detections, video, self.params), self.params)
+        with single_threaded_blas():
+            return track_smot(video_detections(detections, video, self.params), self.params)
 
 
 class GtcsaTracker(BatchTracker[GtcsaStageParams]):
@@ -110,7 +117,8 @@ class GtcsaTracker(BatchTracker[GtcsaStageParams]):
 
     def track(self, detections: Sequence[Detections], video: VideoContext) -> Tracks:
         table = video_detections(detections, video, self.params)
-        return track_gtcsa(table, video.height, self.params)
+        with single_threaded_blas():
+            return track_gtcsa(table, video.height, self.params)
 
 
 BATCH_TRACKERS: tuple[type[BatchTracker[StageParams]], ...] = (  # type: ignore[assignment]
