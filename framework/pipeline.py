@@ -20,7 +20,7 @@ from typing import Any, Literal, cast
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from trackfw.errors import UserError
+from trackfw.errors import UserError, quoted
 from trackfw.registry import Registry, unknown_name_message
 from trackfw.stages import (
     BATCH_KINDS,
@@ -34,6 +34,11 @@ from trackfw.stages import (
 TOP_LEVEL_KEYS = ("name", "description", "input", "stages", "engine")
 #: Every kind a pipeline's ``stages`` may name: the segment kinds, then the batch tracker.
 PIPELINE_KINDS = (*STAGE_KINDS, "batch_tracker")
+#: Most values (scalars, lists, mappings) a YAML document may stand for once its aliases are
+#: expanded. A pipeline has a few hundred; nine nested lists of nine aliases (a "billion laughs"
+#: bomb) stand for hundreds of millions, which everything downstream (copying, hashing, error
+#: messages) would walk.
+MAX_YAML_VALUES = 100_000
 STAGE_KEYS = ("type", "params")
 
 
@@ -139,8 +144,74 @@ class Pipeline:
         return PipelineStages(**cast(dict[str, Any], built))
 
 
-class _StrictLoader(yaml.SafeLoader):
-    """SafeLoader that rejects duplicate mapping keys instead of keeping the last one."""
+class YamlTooLargeError(yaml.composer.ComposerError):
+    """A YAML document whose aliases expand to more than :data:`MAX_YAML_VALUES` values."""
+
+
+def _expanded_size(root: yaml.Node, limit: int) -> int:
+    """Values ``root`` stands for with every alias expanded, counting up to just over ``limit``.
+
+    Aliases share node objects, so each distinct node's size is computed once; the walk never
+    expands anything. A node that contains itself (a recursive alias) counts as over the limit.
+    """
+    sizes: dict[int, int] = {}
+    open_nodes: set[int] = set()
+
+    def size(node: yaml.Node) -> int:
+        key = id(node)
+        if key in sizes:
+            return sizes[key]
+        if key in open_nodes:
+            return limit + 1
+        open_nodes.add(key)
+        total = 1
+        if isinstance(node, yaml.SequenceNode):
+            for child in node.value:
+                total += size(child)
+                if total > limit:
+                    break
+        elif isinstance(node, yaml.MappingNode):
+            for key_node, value_node in node.value:
+                total += size(key_node) + size(value_node)
+                if total > limit:
+                    break
+        open_nodes.discard(key)
+        sizes[key] = min(total, limit + 1)
+        return sizes[key]
+
+    return size(root)
+
+
+class _BoundedLoader(yaml.SafeLoader):
+    """SafeLoader that refuses documents whose aliases expand beyond :data:`MAX_YAML_VALUES`.
+
+    The check runs on the composed node graph, before any Python object is built.
+    """
+
+    def compose_document(self) -> yaml.Node | None:
+        node = super().compose_document()
+        if node is not None and _expanded_size(node, MAX_YAML_VALUES) > MAX_YAML_VALUES:
+            raise YamlTooLargeError(
+                None,
+                None,
+                f"the document stands for more than {MAX_YAML_VALUES} values once its aliases"
+                " are expanded (an alias bomb?); expected plain data",
+                node.start_mark,
+            )
+        return node
+
+
+def safe_load(text: str) -> Any:
+    """``yaml.safe_load`` with the alias-expansion bound of :class:`_BoundedLoader`."""
+    loader = _BoundedLoader(text)
+    try:
+        return loader.get_single_data()
+    finally:
+        loader.dispose()
+
+
+class _StrictLoader(_BoundedLoader):
+    """Bounded SafeLoader that rejects duplicate mapping keys instead of keeping the last one."""
 
 
 def _construct_mapping(
@@ -153,7 +224,7 @@ def _construct_mapping(
             raise yaml.constructor.ConstructorError(
                 None,
                 None,
-                f"duplicate key {key!r} (first on line {seen[key] + 1})",
+                f"duplicate key {quoted(key)} (first on line {seen[key] + 1})",
                 key_node.start_mark,
             )
         seen[key] = key_node.start_mark.line
@@ -188,11 +259,13 @@ def parse_assignments(assignments: list[str], option: str) -> dict[str, Any]:
     for assignment in assignments:
         key, separator, text = assignment.partition("=")
         if not separator or not key.strip():
-            raise UserError(f"{option} {assignment!r}: expected KEY=VALUE.")
+            raise UserError(f"{option} {quoted(assignment)}: expected KEY=VALUE.")
         try:
-            params[key.strip()] = yaml.safe_load(text) if text.strip() else ""
+            params[key.strip()] = safe_load(text) if text.strip() else ""
+        except YamlTooLargeError as error:
+            raise UserError(f"{option} {quoted(assignment)}: {error.problem}.") from None
         except yaml.YAMLError:
-            raise UserError(f"{option} {assignment!r}: the value is not valid YAML.") from None
+            raise UserError(f"{option} {quoted(assignment)}: the value is not valid YAML.") from None
     return params
 
 
@@ -204,11 +277,14 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str], source: str)
         keys = [key for key in path.strip().split(".") if key]
         if not separator or not keys:
             problems.append(
-                f"--set {override!r}: expected PATH=VALUE, e.g. stages.tracker.params.gate_px=40"
+                f"--set {quoted(override)}: expected PATH=VALUE, e.g. stages.tracker.params.gate_px=40"
             )
             continue
         try:
-            value = yaml.safe_load(raw_value) if raw_value.strip() else ""
+            value = safe_load(raw_value) if raw_value.strip() else ""
+        except YamlTooLargeError as error:
+            problems.append(f"--set {quoted(override)}: {error.problem}")
+            continue
         except yaml.YAMLError:
             value = raw_value
         node: Any = data
@@ -218,7 +294,7 @@ def apply_overrides(data: dict[str, Any], overrides: Sequence[str], source: str)
                 child = node[key] = {}
             if not isinstance(child, dict):
                 where = ".".join(keys[: depth + 1])
-                problems.append(f"--set {override!r}: {where} is not a mapping")
+                problems.append(f"--set {quoted(override)}: {where} is not a mapping")
                 break
             node = child
         else:
@@ -242,14 +318,15 @@ def _pydantic_problems(error: ValidationError, prefix: str, model: type[BaseMode
         if item["type"] == "missing":
             lines.append(f"{path}: required value is missing")
         else:
-            lines.append(f"{path}: {message}, got {item.get('input')!r}")
+            lines.append(f"{path}: {message}, got {quoted(item.get('input'))}")
     return lines
 
 
 def _unknown_key(path: str, key: Any, valid: Sequence[str]) -> str:
-    close = difflib.get_close_matches(str(key), valid, n=2, cutoff=0.5)
+    shown = str(key) if isinstance(key, str | int) and len(str(key)) <= 60 else quoted(key, 60)
+    close = difflib.get_close_matches(shown, valid, n=2, cutoff=0.5)
     hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
-    return f"{path}{'.' if path else ''}{key}: unknown key{hint} (valid: {', '.join(valid)})"
+    return f"{path}{'.' if path else ''}{shown}: unknown key{hint} (valid: {', '.join(valid)})"
 
 
 def resolve_stage(
@@ -273,7 +350,7 @@ def resolve_stage(
     """
     if not isinstance(spec, Mapping):
         problems.append(
-            f"{path}: expected a mapping with 'type' and optional 'params', got {spec!r}"
+            f"{path}: expected a mapping with 'type' and optional 'params', got {quoted(spec)}"
         )
         return None
     unknown = [key for key in spec if key not in STAGE_KEYS]
@@ -299,7 +376,7 @@ def resolve_stage(
     cls = registry.stages[(kind, type_name)].cls
     params = spec.get("params") or {}
     if not isinstance(params, Mapping):
-        problems.append(f"{path}.params: expected a mapping of parameters, got {params!r}")
+        problems.append(f"{path}.params: expected a mapping of parameters, got {quoted(params)}")
         return None
     params = dict(params)
     nested: dict[str, StageConfig] = {}
@@ -424,10 +501,10 @@ def validate_pipeline(
         problems.append("name: expected a non-empty string naming the pipeline")
     description = data.get("description", "")
     if not isinstance(description, str):
-        problems.append(f"description: expected a string, got {description!r}")
+        problems.append(f"description: expected a string, got {quoted(description)}")
     default_input = data.get("input")
     if default_input is not None and not isinstance(default_input, str):
-        problems.append(f"input: expected a path or builtin:NAME, got {default_input!r}")
+        problems.append(f"input: expected a path or builtin:NAME, got {quoted(default_input)}")
     engine = EngineOptions()
     try:
         engine = EngineOptions(**(data.get("engine") or {}))

@@ -33,7 +33,7 @@ from pluggy import HookImpl
 from pydantic import BaseModel, ValidationError
 
 from trackfw import PLUGIN_API_VERSION, __version__, hookspecs
-from trackfw.errors import PluginError, UserError
+from trackfw.errors import PluginError, UserError, quoted
 from trackfw.stages import STAGE_BASES, Stage, StageParams
 
 ENTRY_POINT_GROUP = "trackfw"
@@ -249,7 +249,7 @@ def unknown_name_message(kind: str, name: str, known: Iterable[str]) -> str:
     close = difflib.get_close_matches(name, known, n=3, cutoff=0.5)
     hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
     valid = ", ".join(known) if known else "none registered"
-    return f"unknown {kind.replace('_', ' ')} {name!r}{hint} (valid: {valid})"
+    return f"unknown {kind.replace('_', ' ')} {quoted(name, 60)}{hint} (valid: {valid})"
 
 
 def _identity(module: ModuleType) -> ModuleType:
