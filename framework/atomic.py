@@ -57,9 +57,14 @@ def write_text(path: str | os.PathLike[str], text: str) -> None:
         stream.write(text)
 
 
-def write_json(path: str | os.PathLike[str], data: Any) -> None:
-    """Write ``data`` as indented JSON atomically."""
-    write_text(path, json.dumps(data, indent=2, sort_keys=False, default=_json_default) + "\n")
+def write_json(path: str | os.PathLike[str], data: Any, allow_nan: bool = True) -> None:
+    """Write ``data`` as indented JSON atomically.
+
+    With ``allow_nan=False`` a non-finite float is a ValueError instead of ``Infinity`` or
+    ``NaN``, which most JSON readers refuse.
+    """
+    text = json.dumps(data, indent=2, sort_keys=False, default=_json_default, allow_nan=allow_nan)
+    write_text(path, text + "\n")
 
 
 def _json_default(value: Any) -> Any:

@@ -26,6 +26,7 @@ from trackfw.stages import (
     BATCH_KINDS,
     STAGE_KINDS,
     BatchStages,
+    FiniteModel,
     PipelineStages,
     Stage,
     StageParams,
@@ -42,7 +43,7 @@ MAX_YAML_VALUES = 100_000
 STAGE_KEYS = ("type", "params")
 
 
-class EngineOptions(BaseModel):
+class EngineOptions(FiniteModel):
     """Options of the online loop itself (``engine:`` in a pipeline)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any, ClassVar, Generic, TypeVar, cast, get_args, get_origin
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, field_validator
 
 from trackfw.arrays import FloatArray, IntArray
 from trackfw.records import (
@@ -55,10 +55,48 @@ NESTED_KINDS = ("predictor",)
 """Kinds that are not pipeline stages themselves but are configured inside one."""
 
 
-class StageParams(BaseModel):
+#: Largest magnitude of an integer parameter: the C int that OpenCV and numpy take underneath.
+MAX_INT_PARAMETER = 2**31 - 1
+
+
+def _integer_out_of_range(value: Any) -> bool:
+    if isinstance(value, bool):
+        return False
+    if isinstance(value, int):
+        return abs(value) > MAX_INT_PARAMETER
+    if isinstance(value, list | tuple | set | frozenset):
+        return any(_integer_out_of_range(item) for item in value)
+    if isinstance(value, dict):
+        return any(_integer_out_of_range(item) for item in value.values())
+    return False
+
+
+class FiniteModel(BaseModel):
+    """Base of every parameter and settings model: numbers finite, integers within a C int.
+
+    ``inf`` or ``nan`` (``1e400`` in YAML is ``inf``) would run and write ``Infinity`` into the
+    outputs; an integer like ``1e23`` would validate and overflow in OpenCV on the first frame.
+    Settings models nested in a stage's parameters derive from this too.
+    """
+
+    model_config = ConfigDict(allow_inf_nan=False)
+
+    @field_validator("*", mode="after")
+    @classmethod
+    def _integers_in_range(cls, value: Any) -> Any:
+        if _integer_out_of_range(value):
+            raise ValueError(
+                f"expected integers between {-MAX_INT_PARAMETER} and {MAX_INT_PARAMETER}"
+            )
+        return value
+
+
+class StageParams(FiniteModel):
     """Base of every stage's parameter model: unknown keys are errors, values are immutable."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False
+    )
 
 
 P = TypeVar("P", bound=StageParams)

@@ -167,6 +167,23 @@ def unread_warning(run: VideoRun) -> str | None:
     )
 
 
+def finite_json(value: Any) -> Any:
+    """``value`` with every non-finite float (``inf``, ``nan``) replaced by None, recursively.
+
+    >>> finite_json({"cost": float("inf"), "costs": [1.0, float("nan")]})
+    {'cost': None, 'costs': [1.0, None]}
+    """
+    if hasattr(value, "tolist") and not isinstance(value, float):
+        value = value.tolist()  # numpy scalars and arrays from diagnostics
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: finite_json(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [finite_json(item) for item in value]
+    return value
+
+
 def summary_data(run: VideoRun, pipeline: Pipeline) -> dict[str, Any]:
     """summary.json content."""
     statuses = [record.status for record in run.frames]
@@ -207,8 +224,9 @@ def write_run(run: VideoRun, pipeline: Pipeline, directory: Path) -> Path:
     (directory / SUMMARY_FILE).unlink(missing_ok=True)
     write_text(directory / TRACKS_FILE, tracks_text(run, pipeline.engine.box_size))
     write_text(directory / FRAMES_FILE, frames_text(run))
-    write_json(directory / GAPS_FILE, gaps_data(run))
-    write_json(directory / SUMMARY_FILE, summary_data(run, pipeline))
+    # Readers of JSON refuse Infinity and NaN: undefined values are null.
+    write_json(directory / GAPS_FILE, finite_json(gaps_data(run)), allow_nan=False)
+    write_json(directory / SUMMARY_FILE, finite_json(summary_data(run, pipeline)), allow_nan=False)
     return directory
 
 

@@ -13,14 +13,15 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
 
 from trackfw.arrays import BoolArray, FloatArray, IntArray
+from trackfw.stages import FiniteModel
 
 _COMBINATION_CHUNK = 200_000
 
 
-class WindowSettings(BaseModel):
+class WindowSettings(FiniteModel):
     """How candidate windows are enumerated and size-filtered."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")

@@ -21,16 +21,17 @@ from typing import Literal
 
 import cv2
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
 from scipy.optimize import linear_sum_assignment
 
 from trackfw.arrays import FloatArray
+from trackfw.stages import FiniteModel
 
 _AREA_EPSILON = 1e-9
 _CHUNK = 64
 
 
-class ShapeDistanceSettings(BaseModel):
+class ShapeDistanceSettings(FiniteModel):
     """Parameters of Δ (``shape`` of the window association)."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")

@@ -13,13 +13,14 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
 
 from trackfw.arrays import FloatArray
+from trackfw.stages import FiniteModel
 from trackfw_plugins.maths.thin_plate import TpsBasis, homogeneous
 
 
-class TpsRpmSettings(BaseModel):
+class TpsRpmSettings(FiniteModel):
     """TPS-RPM parameters; defaults are the authors' code values and ours.
 
     See docs/algorithms/tps-rpm.md#parameters.
