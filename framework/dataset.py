@@ -42,11 +42,22 @@ IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".m4v")
 
 
+def _video_files(folder: Path) -> list[Path]:
+    """Video files directly in ``folder`` (not hidden), sorted."""
+    return sorted(
+        child
+        for child in folder.iterdir()
+        if child.is_file() and child.suffix.lower() in VIDEO_SUFFIXES and not child.name.startswith(".")
+    )
+
+
 def is_video_dir(path: Path) -> bool:
     """True when ``path`` is one video, not a dataset.
 
-    A video folder has frames (img1/ or a video file) or at least a meta.json: a point-only
-    video (annotations without pixels) runs with pipelines whose stages need no pixels.
+    A video folder has frames (img1/, video.mp4 or a single video file) or at least a meta.json:
+    a point-only video (annotations without pixels) runs with pipelines whose stages need no
+    pixels. A folder of several video files and no annotation (a camera's recording split into
+    GX010001.MP4, GX010002.MP4) is a dataset of one video per file.
     """
     if not path.is_dir():
         return False
@@ -56,21 +67,43 @@ def is_video_dir(path: Path) -> bool:
         or (path / META_FILE).is_file()
     ):
         return True
-    return any(
-        child.suffix.lower() in VIDEO_SUFFIXES for child in path.iterdir() if child.is_file()
-    )
+    files = _video_files(path)
+    annotated = any((path / name).is_file() for name in (GT_FILE, HEADS_FILE, INTERVALS_FILE))
+    return len(files) == 1 or (len(files) > 1 and annotated)
+
+
+def _video_name(path: Path) -> str:
+    return path.stem if path.is_file() else path.name
 
 
 def list_videos(dataset: Path) -> list[Path]:
-    """The video folders of a dataset (or the single video when ``dataset`` is one), sorted."""
+    """The videos of a dataset (or the single video when ``dataset`` is one), sorted.
+
+    A dataset's videos are its video folders and the video files directly in it; hidden
+    entries (names starting with ``.``, such as a generator's staging folder left by a killed
+    run) are skipped. Two videos may not share a name: outputs go to one folder per name.
+    """
     if dataset.is_file() or is_video_dir(dataset):
         return [dataset]
     if not dataset.is_dir():
         raise UserError(f"{dataset}: no such file or folder; expected a video or a dataset folder.")
-    videos = sorted(child for child in dataset.iterdir() if is_video_dir(child))
+    videos = sorted(
+        [child for child in dataset.iterdir() if not child.name.startswith(".") and is_video_dir(child)]
+        + _video_files(dataset)
+    )
     if not videos:
         raise UserError(
-            f"{dataset}: no video found; expected sub-folders with img1/ or {VIDEO_FILE}."
+            f"{dataset}: no video found; expected sub-folders with img1/ or {VIDEO_FILE}, or"
+            f" video files ({', '.join(VIDEO_SUFFIXES)})."
+        )
+    by_name: dict[str, list[str]] = {}
+    for video in videos:
+        by_name.setdefault(_video_name(video), []).append(video.name)
+    clashes = [f"{', '.join(entries)} (all named {name!r})" for name, entries in by_name.items() if len(entries) > 1]
+    if clashes:
+        raise UserError(
+            f"{dataset}: several videos would write to the same output folder: {'; '.join(clashes)};"
+            " expected one video per name: rename or move all but one."
         )
     return videos
 
@@ -83,9 +116,15 @@ def frame_source_path(video_dir: Path) -> Path:
         return video_dir / IMAGE_FOLDER
     if (video_dir / VIDEO_FILE).is_file():
         return video_dir / VIDEO_FILE
-    for child in sorted(video_dir.iterdir()):
-        if child.suffix.lower() in VIDEO_SUFFIXES:
-            return child
+    files = _video_files(video_dir)
+    if len(files) > 1:
+        raise UserError(
+            f"{video_dir}: several video files ({', '.join(f.name for f in files)}) beside the"
+            f" annotations; expected one video per folder ({IMAGE_FOLDER}/, {VIDEO_FILE} or a"
+            " single video file)."
+        )
+    if files:
+        return files[0]
     raise UserError(f"{video_dir}: no frames; expected {IMAGE_FOLDER}/ or {VIDEO_FILE}.")
 
 

@@ -5,9 +5,14 @@ from __future__ import annotations
 import textwrap
 from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
+from trackfw.hookspecs import hookimpl
+from trackfw.records import Detections, FrameData
+from trackfw.registry import Registry, load_registry
+from trackfw.stages import Detector
 from trackfw_plugins.datasets.points import make_points_video
 
 PIPELINE = textwrap.dedent(
@@ -43,3 +48,49 @@ def pipeline_file(tmp_path: Path) -> Callable[[str], Path]:
         return path
 
     return write
+
+
+class _PixelDetector(Detector):
+    """Test detector that reads pixels: one detection at the image centre."""
+
+    name = "pixel-centre"
+    uses_pixels = True
+
+    def detect(self, frame: FrameData) -> Detections:
+        assert frame.image is not None
+        height, width = frame.image.shape[:2]
+        return Detections.from_points([[width / 2, height / 2]])
+
+
+def pixel_registry() -> Registry:
+    """The installed plugins plus the test detector ``pixel-centre``."""
+    module = ModuleType("pixel_centre_plugin")
+
+    @hookimpl
+    def trackfw_register_stages(registry: Registry) -> None:
+        registry.add_detector(_PixelDetector)
+
+    module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
+    return load_registry(extra_modules=[("pixel-centre", module)])
+
+
+PIXEL_PIPELINE = textwrap.dedent(
+    """\
+    name: pixels
+    engine: {init: detections}
+    stages:
+      detector:    {type: pixel-centre}
+      classifier:  {type: flow-threshold}
+      tracker:     {type: kalman}
+      gap_matcher: {type: assignment}
+    """
+)
+
+
+@pytest.fixture
+def pixel_pipeline(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A pipeline file whose detector reads pixels; ``trackfw`` commands see its test plugin."""
+    monkeypatch.setattr("trackfw.cli.load_registry", pixel_registry)
+    path = tmp_path / "pixels.yaml"
+    path.write_text(PIXEL_PIPELINE, encoding="utf-8")
+    return path

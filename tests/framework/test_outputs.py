@@ -4,20 +4,14 @@ from __future__ import annotations
 
 import json
 import struct
-import textwrap
 from collections.abc import Iterator
 from pathlib import Path
-from types import ModuleType
 
 import cv2
 import numpy as np
 import pytest
 
 from trackfw.cli import main
-from trackfw.hookspecs import hookimpl
-from trackfw.records import Detections, FrameData
-from trackfw.registry import Registry, load_registry
-from trackfw.stages import Detector
 
 #: MP4 boxes that hold other boxes on the way from ``moov`` to the sample tables.
 _CONTAINERS = {"moov", "trak", "mdia", "minf", "stbl"}
@@ -89,53 +83,15 @@ def truncated_faststart_mp4(path: Path, n_frames: int, keep: int) -> None:
     path.write_bytes(bytes(out[: data_start + sum(sizes[:keep])]))
 
 
-class _PixelDetector(Detector):
-    """Test detector that reads pixels: one detection at the image centre."""
-
-    name = "pixel-centre"
-    uses_pixels = True
-
-    def detect(self, frame: FrameData) -> Detections:
-        assert frame.image is not None
-        height, width = frame.image.shape[:2]
-        return Detections.from_points([[width / 2, height / 2]])
-
-
-def _pixel_registry() -> Registry:
-    module = ModuleType("pixel_centre_plugin")
-
-    @hookimpl
-    def trackfw_register_stages(registry: Registry) -> None:
-        registry.add_detector(_PixelDetector)
-
-    module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
-    return load_registry(extra_modules=[("pixel-centre", module)])
-
-
-PIXEL_PIPELINE = textwrap.dedent(
-    """\
-    name: pixels
-    engine: {init: detections}
-    stages:
-      detector:    {type: pixel-centre}
-      classifier:  {type: flow-threshold}
-      tracker:     {type: kalman}
-      gap_matcher: {type: assignment}
-    """
-)
-
-
 def test_truncated_mp4_says_how_many_frames_could_not_be_read(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, pixel_pipeline: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     video = tmp_path / "clip.mp4"
     truncated_faststart_mp4(video, n_frames=120, keep=40)
     capture = cv2.VideoCapture(str(video))
     assert capture.get(cv2.CAP_PROP_FRAME_COUNT) == 120  # the index still promises 120 frames
     capture.release()
-    pipeline = tmp_path / "pixels.yaml"
-    pipeline.write_text(PIXEL_PIPELINE)
-    monkeypatch.setattr("trackfw.cli.load_registry", _pixel_registry)
+    pipeline = pixel_pipeline
     out = tmp_path / "out"
     code = main(["run", str(pipeline), "--input", str(video), "--output", str(out), "--quiet"])
     err = capsys.readouterr().err
@@ -150,13 +106,11 @@ def test_truncated_mp4_says_how_many_frames_could_not_be_read(
 
 
 def test_complete_video_has_no_warning(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, pixel_pipeline: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     video = tmp_path / "clip.mp4"
     truncated_faststart_mp4(video, n_frames=30, keep=30)
-    pipeline = tmp_path / "pixels.yaml"
-    pipeline.write_text(PIXEL_PIPELINE)
-    monkeypatch.setattr("trackfw.cli.load_registry", _pixel_registry)
+    pipeline = pixel_pipeline
     out = tmp_path / "out"
     code = main(["run", str(pipeline), "--input", str(video), "--output", str(out), "--quiet"])
     err = capsys.readouterr().err

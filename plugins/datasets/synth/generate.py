@@ -370,6 +370,29 @@ def generate_video(plan: VideoPlan, out_dir: Path, output_format: str = "mp4",
                        time.perf_counter() - started)
 
 
+def staging_folders(out_dir: Path) -> list[Path]:
+    """The hidden staging folders (``.NAME.XXXX.tmp``) that :func:`generate_video` writes into.
+
+    A generator killed midway (SIGKILL, power loss) cannot remove its own; readers skip hidden
+    folders, and ``--force`` removes them.
+    """
+    if not out_dir.is_dir():
+        return []
+    return sorted(
+        child
+        for child in out_dir.iterdir()
+        if child.is_dir() and child.name.startswith(".") and child.name.endswith(".tmp")
+    )
+
+
+def remove_staging_folders(out_dir: Path) -> list[Path]:
+    """Remove the staging folders a killed run left in ``out_dir``; returns them."""
+    stale = staging_folders(out_dir)
+    for folder in stale:
+        shutil.rmtree(folder, ignore_errors=True)
+    return stale
+
+
 def _worker_init() -> None:
     cv2.setNumThreads(1)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -396,6 +419,8 @@ def generate_dataset(
     if jobs < 1:
         raise UserError(f"--jobs {jobs}: expected a positive number of processes.")
     out_dir.mkdir(parents=True, exist_ok=True)
+    if force:
+        remove_staging_folders(out_dir)
     preview_dir = out_dir / "preview" if preview else None
     if preview_dir is not None:
         preview_dir.mkdir(exist_ok=True)
