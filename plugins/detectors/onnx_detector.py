@@ -20,7 +20,7 @@ Then score threshold, ``cv2.dnn.NMSBoxes``, and the head point of each box (``po
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import cv2
 import numpy as np
@@ -124,6 +124,7 @@ class OnnxDetector(Detector[OnnxDetectorParams]):
         self.input_name = inputs[0].name
         shape = inputs[0].shape
         height_axis, width_axis = (2, 3) if settings.layout == "NCHW" else (1, 2)
+        _check_input_shape(path, list(shape), settings)
         self.input_height = settings.input_height or _static(shape[height_axis])
         self.input_width = settings.input_width or _static(shape[width_axis])
         if settings.decoding != "score_map" and not (self.input_height and self.input_width):
@@ -254,6 +255,38 @@ class OnnxDetector(Detector[OnnxDetectorParams]):
     def detect(self, frame: FrameData) -> Detections:
         """Detect heads on ``frame`` (its image must be decoded)."""
         return self.detect_image(frame_pixels(frame, self.name))
+
+
+def _check_input_shape(path: Path, shape: list[Any], settings: OnnxDetectorParams) -> None:
+    """The model's declared input must take what :meth:`OnnxDetector._tensor` feeds it.
+
+    That is one float image of 3 colour channels laid out as ``settings.layout``, of the size
+    ``input_width`` x ``input_height`` when those are set; a dynamic dimension takes anything.
+    Checked when the pipeline is validated, not on the first frame.
+    """
+    nchw = settings.layout == "NCHW"
+    expected = "(1, 3, H, W)" if nchw else "(1, H, W, 3)"
+    channels = shape[1] if nchw else shape[3]
+    height, width = (shape[2], shape[3]) if nchw else (shape[1], shape[2])
+    # Only positive integers are static dimensions (names, None or -1 are dynamic).
+    def static(value: Any) -> bool:
+        return isinstance(value, int) and value >= 1
+
+    for declared, wanted, name in (
+        (height, settings.input_height, "input_height"),
+        (width, settings.input_width, "input_width"),
+    ):
+        if static(declared) and wanted and wanted != declared:
+            raise UserError(
+                f"{path}: model input is {shape}; {name} {wanted} does not match its"
+                f" {declared}; expected {expected} with layout {settings.layout}."
+            )
+    wrong = (static(channels) and channels != 3) or (static(shape[0]) and shape[0] != 1)
+    if wrong:
+        raise UserError(
+            f"{path}: model input is {shape}; expected {expected} (layout {settings.layout},"
+            " 3 channels)."
+        )
 
 
 def _static(value: object) -> int:

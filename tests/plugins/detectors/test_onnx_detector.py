@@ -126,3 +126,32 @@ def test_shipped_dense_model_runs_as_a_score_map_detector() -> None:
     )
     detections = OnnxDetector(params).detect_image(np.full((120, 160, 3), 128, np.uint8))
     assert len(detections) == 0  # a flat grey frame has no head
+
+
+def test_model_input_shape_is_checked_at_validation(
+    tmp_path: Path, make_constant_model, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from trackfw.cli import main
+
+    # A 1-channel 7x5 model: before, validate passed and frame 1 failed with a traceback.
+    model = make_constant_model(tmp_path / "grey.onnx", {"rows": np.zeros((1, 1, 6))}, [1, 1, 7, 5])
+    pipeline = tmp_path / "onnx.yaml"
+    pipeline.write_text(
+        "name: onnx\nstages:\n"
+        f"  detector: {{type: onnx, params: {{model: {str(model)!r}}}}}\n"
+        "  classifier: {type: flow-threshold}\n  tracker: {type: kalman}\n"
+        "  gap_matcher: {type: assignment}\n"
+    )
+    assert main(["validate", str(pipeline)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and str(model) in lines[0], lines
+    assert "[1, 1, 7, 5]" in lines[0] and "3 channels" in lines[0], lines[0]
+    nhwc = make_constant_model(tmp_path / "nhwc.onnx", {"rows": np.zeros((1, 1, 6))}, [1, 7, 5, 1])
+    with pytest.raises(UserError, match=r"\[1, 7, 5, 1\].*expected \(1, H, W, 3\)"):
+        OnnxDetector(OnnxDetectorParams(model=str(nhwc), layout="NHWC"))
+    fixed = make_constant_model(tmp_path / "fixed.onnx", {"rows": np.zeros((1, 1, 6))}, [1, 3, 64, 64])
+    with pytest.raises(UserError, match=r"input_width 32.*64"):
+        OnnxDetector(OnnxDetectorParams(model=str(fixed), input_width=32))
+    # A model that fits runs on a frame.
+    good = OnnxDetector(OnnxDetectorParams(model=str(fixed)))
+    assert len(good.detect_image(FRAME)) == 0
