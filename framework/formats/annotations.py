@@ -77,6 +77,8 @@ def read_targets(
 ) -> dict[int, dict[int, tuple[float, float]]]:
     """gt.csv as ``{0-based frame: {id: (x, y)}}``; duplicate ids or bad frames are errors."""
     table = _fast_table(path, GT_COLUMNS, n_frames)
+    if table is not None and (table[:, 1] < 1).any():
+        table = None  # the line-by-line reader names the line with a bad id
     if table is not None:
         keys = table[:, 0] * 1e9 + table[:, 1]
         if len(np.unique(keys)) == len(keys):
@@ -88,6 +90,11 @@ def read_targets(
     for line, row in _rows(path, GT_COLUMNS):
         frame = parse_integer(path, line, "frame", row["frame"])
         target_id = parse_integer(path, line, "id", row["id"])
+        if target_id < 1:
+            raise UserError(
+                f"{path}: line {line}: id {target_id} is not a positive integer; expected ids"
+                " 1, 2, ... (they become the track ids of tracks.txt)."
+            )
         x = parse_finite(path, line, "x", row["x"])
         y = parse_finite(path, line, "y", row["y"])
         check_frame(path, line, frame, n_frames)

@@ -43,6 +43,7 @@ from trackfw.formats.annotations import (
     read_intervals,
     read_targets,
 )
+from trackfw.records import VideoContext
 
 POSE_COLUMNS = ("frame", "pan", "tilt", "roll", "scale", "tx", "ty")
 #: Tolerance (pixels) for a gt point on the image border.
@@ -270,6 +271,12 @@ def _check_points(
     seen: dict[tuple[int, int], int] = {}
     for line, numbers, _ in _scan_csv(path, columns, ("frame", "id"), problems):
         frame, identity = int(numbers["frame"]), int(numbers["id"])
+        if identity < 1:
+            problems.append(
+                f"{path}: line {line}: id {identity} is not a positive integer; expected ids"
+                " 1, 2, ... (they become the track ids of tracks.txt)."
+            )
+            continue
         if frame < 1 or (n_frames is not None and frame > n_frames):
             limit = f"1..{n_frames}" if n_frames is not None else ">= 1"
             problems.append(
@@ -389,13 +396,33 @@ def check_video(video: Path) -> tuple[list[str], dict[str, Any]]:
     count = _check_frames(video, meta, problems)
     declared = meta.get("n_frames")
     n_frames = declared if isinstance(declared, int) and declared > 0 else count
+    truth_problems, facts = _check_truth(video, n_frames, meta)
+    problems.extend(truth_problems)
+    _check_poses(video, n_frames, problems)
+    problems.sort(key=_problem_order)
+    return problems, {"n_frames": n_frames, **facts}
+
+
+def _check_truth(
+    video: Path, n_frames: int | None, meta: dict[str, Any]
+) -> tuple[list[str], dict[str, Any]]:
+    """intervals.csv, gt.csv and heads.csv of one video: problems and facts."""
+    problems: list[str] = []
     intervals = _check_intervals(video / INTERVALS_FILE, n_frames, problems)
     targets = _check_targets(video, n_frames, meta, intervals, problems)
     heads = _check_heads(video, n_frames, problems)
-    _check_poses(video, n_frames, problems)
-    problems.sort(key=_problem_order)
-    facts = {"n_frames": n_frames, "intervals": intervals, "targets": targets, "heads": heads}
-    return problems, facts
+    return problems, {"intervals": intervals, "targets": targets, "heads": heads}
+
+
+def check_ground_truth(video: VideoContext) -> list[str]:
+    """Problems of a video's ground truth (gt.csv, intervals.csv, heads.csv), sorted.
+
+    The same rules as ``trackfw dataset check``, for commands that score against the ground
+    truth (``trackfw eval``): what check rejects is never scored.
+    """
+    meta = {"width": video.width, "height": video.height}
+    problems, _ = _check_truth(Path(video.path), video.n_frames, meta)
+    return sorted(problems, key=_problem_order)
 
 
 def _summary(values: Sequence[float]) -> dict[str, float]:

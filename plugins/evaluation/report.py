@@ -5,8 +5,10 @@ Conventions (docs/algorithms/evaluation.md#objects-and-hypotheses):
 * Objects are the ground-truth people of interest on non-info-less frames; hypotheses are the
   box centres of tracks.txt. Frames are the union of both sides' frames, so hypotheses on
   ground-truth info-less frames are false positives and ground truth on skipped frames misses.
-  Ground-truth points that a dataset places inside its own info-less intervals are left out of the
-  objects and counted in ``gt_points_in_intervals``.
+  :func:`evaluate_dataset` first checks the ground truth with the rules of ``trackfw dataset
+  check`` (which refuses, among others, points inside the dataset's own info-less intervals);
+  :func:`evaluate_video`, given such points anyway, leaves them out of the objects and counts them
+  in ``gt_points_in_intervals``.
 * MOTA-In / MOTP-In: the frames ``(a, b, b+1)`` of each ground-truth interval, each triple starting
   with no history, a video's triples pooled; the mean runs over videos that have an interval.
 * The info-less classifier is scored on the frames frames.csv marks ``ok``; the others are counted
@@ -31,6 +33,7 @@ from trackfw.dataset import list_videos, load_video
 from trackfw.errors import UserError
 from trackfw.formats.run import RunRecord, check_complete_run, read_run
 from trackfw.records import VideoContext
+from trackfw_plugins.datasets.check import check_ground_truth
 from trackfw_plugins.evaluation.clear_mot import (
     ClearMotCounts,
     FrameObservations,
@@ -346,6 +349,10 @@ def evaluate_dataset(
             f"{runs_dir}: no such folder; expected a runs folder with one sub-folder per video."
         )
     videos = [load_video(path) for path in list_videos(Path(dataset_dir))]
+    # The ground truth passes the same rules as `trackfw dataset check`, or nothing is scored.
+    problems = [line for video in videos for line in check_ground_truth(video)]
+    if problems:
+        raise UserError(*problems)
     missing = [video.name for video in videos if not (runs_dir / video.name).is_dir()]
     if missing:
         raise UserError(

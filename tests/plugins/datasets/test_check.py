@@ -6,6 +6,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 import typer
 from typer.testing import CliRunner
 
@@ -136,3 +137,22 @@ def test_missing_folder_and_missing_files(tmp_path: Path) -> None:
         f"{video / 'gt.csv'}: missing; expected frame,id,x,y of the people of interest.",
         f"{video / 'intervals.csv'}: missing; expected the header start,end,kind (even if empty).",
     ]
+
+
+@pytest.mark.parametrize("bad_id", [-1, 0])
+def test_target_ids_must_be_positive_integers(tmp_path: Path, bad_id: int) -> None:
+    video = make_video(tmp_path / "data" / "v1")
+    text = (video / "gt.csv").read_text().replace("\n1,2,", f"\n1,{bad_id},")
+    (video / "gt.csv").write_text(text)
+    report = check_dataset(tmp_path / "data")
+    line = text.splitlines().index(next(row for row in text.splitlines() if row.startswith(f"1,{bad_id},"))) + 1
+    assert any(
+        f"gt.csv: line {line}: id {bad_id} is not a positive integer" in problem
+        for problem in report.problems
+    ), report.problems
+    # The reader every command uses refuses it too, so tracks.txt can never carry it.
+    from trackfw.dataset import load_video
+    from trackfw.errors import UserError
+
+    with pytest.raises(UserError, match=f"id {bad_id} is not a positive integer"):
+        load_video(video)

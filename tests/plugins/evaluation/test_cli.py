@@ -159,3 +159,25 @@ def test_eval_json_records_the_pipeline_hash(
     document = json.loads((runs / "eval.json").read_text())
     assert document["pipeline_hash"] == first
     assert document["pipeline"] == "oracle"
+
+
+def test_eval_refuses_ground_truth_that_dataset_check_rejects(
+    tmp_path: Path,
+    make_video: Callable[..., Path],
+    make_run: Callable[..., Path],
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from trackfw_plugins.datasets.check import check_dataset
+
+    truth = {t: {1: (100.0, 200.0)} for t in range(10)}
+    truth[4][7] = (300.0, 200.0)  # id 7 appears on frame 5 only, never on frame 1
+    video = make_video(tmp_path / "data", "late", truth, n_frames=10)
+    make_run(tmp_path / "runs", "late", truth, n_frames=10)
+    # The dataset's frames are not the point here; check_dataset's ground-truth lines are.
+    problems = [p for p in check_dataset(tmp_path / "data").problems if "gt.csv" in p]
+    assert len(problems) == 1 and "id 7 is not on frame 1" in problems[0], problems
+    assert _eval_main(tmp_path / "data", tmp_path / "runs") == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert lines == [f"error: {problems[0]}"], lines
+    assert not (tmp_path / "runs" / "eval.csv").exists()
+    assert str(video) in lines[0]

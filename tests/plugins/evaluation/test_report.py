@@ -98,8 +98,7 @@ def test_output_on_infoless_frames_is_false_positive(
 ) -> None:
     dataset, runs = tmp_path / "dataset", tmp_path / "runs"
     truth = _walk(30, skip=INTERVAL)
-    # The dataset also annotates one info-less frame: those points are not objects.
-    make_video(dataset, "v", {**truth, 12: {1: (0.0, 0.0)}}, n_frames=30, intervals=[INTERVAL])
+    make_video(dataset, "v", truth, n_frames=30, intervals=[INTERVAL])
     tracks = {**truth, 11: {1: (400.0, 500.0)}, 12: {1: (400.0, 500.0)}}
     make_run(runs, "v", tracks, n_frames=30, infoless_frames=range(10, 15))
     evaluation = evaluate_dataset(dataset, runs)
@@ -107,7 +106,13 @@ def test_output_on_infoless_frames_is_false_positive(
     assert row["FP"] == 2.0 and row["FN"] == 0.0
     assert row["MOTA"] == pytest.approx(100.0 * (1 - 2 / 75))
     assert (row["IL-Precision"], row["IL-Recall"], row["IL-F1"]) == (100.0, 100.0, 100.0)
-    assert evaluation.videos[0].gt_points_in_intervals == 1
+    assert evaluation.videos[0].gt_points_in_intervals == 0
+    # A dataset that annotates an info-less frame fails `trackfw dataset check`, so eval refuses
+    # it with check's own line instead of scoring it.
+    make_video(tmp_path / "annotated", "v", {**truth, 12: {1: (0.0, 0.0)}}, n_frames=30,
+               intervals=[INTERVAL])  # fmt: skip
+    with pytest.raises(UserError, match=r"frame 13 is inside the info-less interval 11\.\.15"):
+        evaluate_dataset(tmp_path / "annotated", runs)
 
 
 def test_missed_target_changes_counts_exactly(
