@@ -37,8 +37,8 @@ class MotFileParams(StageParams):
         description="Head point of a box: body = the head-point rule (left + w/2, top + 0.08 h),"
         " centre, top.",
     )
-    score_threshold: float = Field(
-        float("-inf"), description="Drop rows whose raw score is below this."
+    score_threshold: float | None = Field(
+        None, description="Drop rows whose raw score is below this; null = keep every row."
     )
     score_transform: Literal["clip", "sigmoid"] = Field(
         "clip", description="Map raw scores to [0, 1]: clip, or the logistic function."
@@ -77,8 +77,9 @@ class MotFileDetector(Detector[MotFileParams]):
     def detect(self, frame: FrameData) -> Detections:
         """The rows of frame ``frame.t`` above the score threshold."""
         boxes, raw = self.table.get(frame.t, (np.zeros((0, 4)), np.zeros(0)))
-        keep = raw >= self.params.score_threshold
-        boxes, raw = boxes[keep], raw[keep]
+        if self.params.score_threshold is not None:
+            keep = raw >= self.params.score_threshold
+            boxes, raw = boxes[keep], raw[keep]
         if self.params.score_transform == "sigmoid":
             scores = 1.0 / (1.0 + np.exp(-raw))
         else:
