@@ -126,8 +126,10 @@ def test_gaps_json_never_holds_infinity_or_nan(tmp_path: Path) -> None:
     run = Engine(pipeline, registry).run_video(load_video(video))
     assert run.gaps
     # A gap matcher may well report an infinite cost (no admissible candidate) or NaN figures.
-    run.gaps[0].cost = math.inf
-    run.gaps[0].diagnostics = {"spread": math.nan, "costs": [1.0, -math.inf]}
+    solution = run.gaps[0].solution
+    assert solution is not None
+    solution.cost = math.inf
+    solution.diagnostics = {"spread": math.nan, "costs": [1.0, -math.inf]}
     out = write_run(run, pipeline, tmp_path / "out")
 
     def refuse(constant: str) -> None:
