@@ -146,6 +146,34 @@ def probe_container(path: Path) -> ContainerInfo:
     return ContainerInfo(width, height, fps if fps > 0 else 30.0, max(n_frames, 0))
 
 
+def check_written_video(path: Path, n_frames: int, shown: Path | None = None) -> None:
+    """Reopen a video just written and count its frames; a UserError when some are missing.
+
+    OpenCV's writer reports no error: on a full disk (or past ``ulimit -f``) it drops frames and
+    the index, and the file cannot be opened. Writers call this before renaming the file into
+    place.
+
+    Args:
+        path: the file written.
+        n_frames: frames handed to the writer.
+        shown: the name to report (the final name when ``path`` is a temporary one).
+    """
+    import cv2
+
+    with native_stderr_silenced():
+        capture = cv2.VideoCapture(str(path))
+        try:
+            count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) if capture.isOpened() else 0
+        finally:
+            capture.release()
+    if count != n_frames:
+        written = "it cannot be opened" if count <= 0 else f"it holds {count}"
+        raise UserError(
+            f"{shown or path}: the video writer was given {n_frames} frames but {written} (is the"
+            f" disk full?); expected a complete video of {n_frames} frames."
+        )
+
+
 def check_frame_sizes(
     files: Sequence[Path], width: int | None = None, height: int | None = None
 ) -> None:

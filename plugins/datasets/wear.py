@@ -44,6 +44,7 @@ from trackfw.errors import UserError
 from trackfw.formats import HEAD_FRACTION, HEAD_SIZE_FRACTION, body_head_points, body_heads
 from trackfw.formats.annotations import write_annotations
 from trackfw.records import Interval
+from trackfw.video_io import check_written_video
 from trackfw_plugins.datasets.mot import MotSequence, load_mot_sequence, read_frame
 from trackfw_plugins.datasets.wear_camera import (
     CameraPose,
@@ -492,6 +493,8 @@ def render_video(
     finally:
         if writer is not None:
             writer.release()
+    if writer is not None:
+        check_written_video(folder / VIDEO_FILE, sequence.n_frames)
     write_annotations(
         folder,
         targets,

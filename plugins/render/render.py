@@ -19,7 +19,7 @@ from trackfw.dataset import frame_source_path, load_video
 from trackfw.errors import UserError
 from trackfw.formats.run import SUMMARY_FILE
 from trackfw.records import VideoContext
-from trackfw.video_io import iter_frames
+from trackfw.video_io import check_written_video, iter_frames
 from trackfw_plugins.render.draw import (
     Image,
     RunData,
@@ -189,6 +189,7 @@ def render_run(
             if t in wanted:
                 result.pngs.append(_png(out, f"frame{t + 1:06d}", drawn))
         writer.release()
+        check_written_video(temporary, result.frames_written, shown=out)
         os.replace(temporary, out)
     except BaseException:
         writer.release()

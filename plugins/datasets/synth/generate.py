@@ -28,6 +28,7 @@ from trackfw.atomic import atomic_open, write_text
 from trackfw.dataset import IMAGE_FOLDER, META_FILE, POSES_FILE, VIDEO_FILE, write_meta
 from trackfw.errors import UserError
 from trackfw.formats.annotations import write_annotations
+from trackfw.video_io import check_written_video
 
 from .presets import VideoPlan, demo_plan
 from .render import (
@@ -350,6 +351,8 @@ def generate_video(plan: VideoPlan, out_dir: Path, output_format: str = "mp4",
         finally:
             if writer is not None:
                 writer.release()
+        if writer is not None:
+            check_written_video(temporary / VIDEO_FILE, plan.n_frames, shown=final / VIDEO_FILE)
         write_annotations(temporary, simulation.targets, simulation.heads, simulation.intervals)
         write_text(temporary / POSES_FILE, _poses_text(simulation))
         write_meta(temporary / META_FILE, _meta(simulation, output_format))
