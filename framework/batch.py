@@ -16,18 +16,14 @@ from __future__ import annotations
 import time
 from typing import Any
 
-import numpy as np
-
-from trackfw.engine import FrameRecord, ProgressCallback, VideoRun, _check_ground_truth
+from trackfw.engine import ProgressCallback, VideoRun, _check_ground_truth, stages_need_pixels
 from trackfw.errors import UserError
+from trackfw.front import FrameFront, FrameRecord
 from trackfw.pipeline import Pipeline
-from trackfw.records import Detections, FrameData, Tracks, VideoContext
+from trackfw.records import Detections, Tracks, VideoContext
 from trackfw.registry import Registry
-from trackfw.stage_cache import CACHED_KINDS, StageCache, StageReplay
+from trackfw.stage_cache import CACHED_KINDS, StageCache
 from trackfw.stages import BatchStages, Stage
-from trackfw.video_io import iter_frames
-
-_NO_DETECTIONS = Detections(np.zeros((0, 2)), np.zeros(0))
 
 
 def run_batch_video(
@@ -42,11 +38,8 @@ def run_batch_video(
     if not isinstance(stages, BatchStages):
         raise TypeError(f"pipeline {pipeline.name!r} is not a batch pipeline")
     _check_ground_truth(stages, video)
-    replay: StageReplay | None = None
-    cache_key = ""
-    if cache is not None:
-        cache_key = cache.key(pipeline, video, registry)
-        replay = cache.load(cache_key, video.n_frames, video.name)
+    key = cache.key(pipeline, video, registry) if cache is not None else ""
+    replay = cache.load(key, video.n_frames, video.name) if cache is not None else None
     live: dict[str, Stage[Any]] = {
         kind: stage
         for kind, stage in stages.by_kind().items()
@@ -55,59 +48,29 @@ def run_batch_video(
     for stage in live.values():
         for candidate in stage.with_nested():
             candidate.start(video)
+    front = FrameFront(
+        video, stages.detector, stages.classifier, replay, stages_need_pixels(live), progress
+    )
     drop = pipeline.engine.infoless_frames == "drop"
-    decode = any(stage.needs_pixels for stage in live.values())
-    clock = time.perf_counter
     frames: list[FrameRecord] = []
     per_frame: list[Detections] = []
-    read = 0
-    started = clock()
-    for t, image, status in iter_frames(video, decode=decode):
-        if progress is not None:
-            progress(t)
-        if replay is not None and status == "ok":
-            status = replay.status_of(t)
-        if status != "ok":
-            frames.append(FrameRecord(t, status))
-            per_frame.append(_NO_DETECTIONS)
-            continue
-        # Without a classifier every frame counts as informative: the video is continuous.
-        record = FrameRecord(t, "ok", infoless=False)
-        first = read == 0
-        read += 1
-        if replay is None:
-            frame = FrameData(t, image, video, first)
-            tick = clock()
-            detections = stages.detector.detect(frame)
-            if not np.array_equal(detections.index, np.arange(len(detections))):
-                detections = Detections(detections.points, detections.scores, detections.boxes)
-            tock = clock()
-            record.milliseconds["detector"] = (tock - tick) * 1e3
-            if stages.classifier is not None:
-                decision = stages.classifier.classify(frame, detections)
-                record.milliseconds["classifier"] = (clock() - tock) * 1e3
-                record.probability = float(decision.probability)
-                record.infoless = bool(decision.infoless) and not first
-        else:
-            detections, probability, infoless, detector_ms, classifier_ms = replay.frame(t)
-            record.milliseconds["detector"] = detector_ms
-            if stages.classifier is not None:
-                record.milliseconds["classifier"] = classifier_ms
-                record.probability, record.infoless = probability, infoless
-        record.detections = detections
-        frames.append(record)
-        per_frame.append(_NO_DETECTIONS if drop and record.infoless else detections)
+    started = time.perf_counter()
+    for observation in front:
+        frames.append(observation.record)
+        kept = observation.readable and not (drop and observation.infoless)
+        per_frame.append(observation.detections if kept else Detections.empty())
+    read = sum(record.status == "ok" for record in frames)
     if read == 0:
         raise UserError(f"{video.path}: no frame could be read; nothing to track.")
-    tick = clock()
+    tick = time.perf_counter()
     tracks = stages.batch_tracker.track(per_frame, video)
-    tracker_ms = (clock() - tick) * 1e3
+    tracker_ms = (time.perf_counter() - tick) * 1e3
     for record in frames:
         if record.status == "ok":
             record.milliseconds["tracker"] = tracker_ms / read
-    seconds = clock() - started
+    seconds = time.perf_counter() - started
     if cache is not None and replay is None:
-        cache.store(cache_key, frames, video.name)
+        cache.store(key, frames, video.name)
     return VideoRun(
         video=video,
         target_ids=[int(i) for i in tracks.track_ids()],

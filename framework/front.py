@@ -85,7 +85,8 @@ class FrameFront:
     Args:
         video: the video.
         detector: the live detector (unused when ``replay`` is given).
-        classifier: the live classifier (unused when ``replay`` is given).
+        classifier: the live classifier (unused when ``replay`` is given), or None for a batch
+            pipeline without one: every frame is then informative (probability left empty).
         replay: recorded detector and classifier outputs, or None to run them.
         decode: whether to read pixels (some stage needs them).
         progress: called with each frame index before the frame is processed.
@@ -95,7 +96,7 @@ class FrameFront:
         self,
         video: VideoContext,
         detector: Detector[Any],
-        classifier: Classifier[Any],
+        classifier: Classifier[Any] | None,
         replay: StageReplay | None,
         decode: bool,
         progress: Callable[[int], None] | None = None,
@@ -127,17 +128,22 @@ class FrameFront:
             tick = time.perf_counter()
             detections = _stable_index(self.detector.detect(frame))
             tock = time.perf_counter()
-            decision = self.classifier.classify(frame, detections)
-            done = time.perf_counter()
             record.milliseconds["detector"] = (tock - tick) * 1e3
-            record.milliseconds["classifier"] = (done - tock) * 1e3
-            probability, said_infoless = float(decision.probability), bool(decision.infoless)
+            probability: float | None = None
+            said_infoless = False
+            if self.classifier is not None:
+                decision = self.classifier.classify(frame, detections)
+                record.milliseconds["classifier"] = (time.perf_counter() - tock) * 1e3
+                probability, said_infoless = float(decision.probability), bool(decision.infoless)
+            done = time.perf_counter()
         else:
-            detections, probability, said_infoless, detector_ms, classifier_ms = self.replay.frame(
-                t
-            )
+            detections, recorded, said_infoless, detector_ms, classifier_ms = self.replay.frame(t)
             record.milliseconds["detector"] = detector_ms
-            record.milliseconds["classifier"] = classifier_ms
+            probability = recorded
+            if self.classifier is not None:
+                record.milliseconds["classifier"] = classifier_ms
+            else:
+                probability, said_infoless = None, False
             done = time.perf_counter()
         record.probability = probability
         # The first frame carries the annotation: it is informative whatever was said.
