@@ -66,7 +66,6 @@ def bench_command(
     from rich.console import Console
 
     from trackfw.cli import get_registry
-    from trackfw.errors import UserError
     from trackfw_plugins.bench.executor import ExecutorOptions, make_executor
     from trackfw_plugins.bench.report import build_table, markdown_table, write_table
     from trackfw_plugins.bench.sweep import plan_sweep
@@ -100,21 +99,26 @@ def bench_command(
         soft_wrap=True,
     )
     if sweep.failures:
-        error_console.print(
-            f"[red]{len(sweep.failures)} job(s) failed[/red]; see {out / 'failures.json'}"
+        _report_failures(sweep, out, error_console)
+
+
+def _report_failures(sweep: Any, out: Path, console: Any) -> None:
+    """Name the first failed jobs on stderr, then stop with exit code 2."""
+    from trackfw.errors import UserError
+
+    console.print(f"[red]{len(sweep.failures)} job(s) failed[/red]; see {out / 'failures.json'}")
+    for failure in sweep.failures[:5]:
+        console.print(
+            f"  {failure.pipeline} / {failure.video}: {failure.error_type}:"
+            f" {failure.error_message}",
+            markup=False,
+            highlight=False,
         )
-        for failure in sweep.failures[:5]:
-            error_console.print(
-                f"  {failure.pipeline} / {failure.video}: {failure.error_type}:"
-                f" {failure.error_message}",
-                markup=False,
-                highlight=False,
-            )
-        # trackfw.cli.main turns a UserError into exit code 2 (it does not pass typer.Exit codes on).
-        raise UserError(
-            f"{len(sweep.failures)} of {len(sweep.results)} jobs failed; see"
-            f" {out / 'failures.json'} (the table covers the completed jobs)."
-        )
+    # trackfw.cli.main turns a UserError into exit code 2 (it does not pass typer.Exit codes on).
+    raise UserError(
+        f"{len(sweep.failures)} of {len(sweep.results)} jobs failed; see"
+        f" {out / 'failures.json'} (the table covers the completed jobs)."
+    )
 
 
 def _run_with_progress(

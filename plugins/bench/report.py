@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from trackfw.atomic import atomic_open, write_text
 from trackfw.formats.run import SUMMARY_FILE, read_run
+from trackfw.formats.text import read_json
 from trackfw.stages import STAGE_KINDS
 from trackfw_plugins.bench.jobs import BENCH_FILE, is_done
 from trackfw_plugins.bench.sweep import SweepPlan
@@ -87,12 +87,12 @@ def _speed(run_dirs: list[Path]) -> dict[str, float]:
     rates: list[float] = []
     per_stage: dict[str, list[float]] = {kind: [] for kind in STAGE_KINDS}
     for run_dir in run_dirs:
-        summary = json.loads((run_dir / SUMMARY_FILE).read_text(encoding="utf-8"))
+        summary = read_json(run_dir / SUMMARY_FILE)
         frames = float(summary.get("n_frames") or 0)
         seconds = float(summary.get("seconds") or 0.0)
         bench_path = run_dir / BENCH_FILE
         if bench_path.is_file():
-            bench = json.loads(bench_path.read_text(encoding="utf-8"))
+            bench = read_json(bench_path)
             seconds = float(bench.get("wall_seconds", seconds)) + float(
                 bench.get("replayed_seconds", 0.0)
             )
