@@ -91,3 +91,23 @@ def test_ambiguous_links_do_not_form_tracklets() -> None:
     tracklets = initial_tracklets(detections, 3.0)
     lengths = sorted(len(piece.points) for piece in tracklets)
     assert lengths == [1, 1, 1, 2]
+
+
+def test_a_gap_of_half_the_mean_tracklet_length_is_not_stitched() -> None:
+    # A target seen 12 frames, unseen, seen 12 frames; a far static one keeps the ratio test
+    # defined (it needs two detections a frame). max_gap is half the mean tracklet length
+    # (of the tracklets cropped to the window).
+    t = np.arange(40, dtype=float)
+    path = np.column_stack([6 * t + 50, 3 * t + 40])
+    for gap, expected in ((2, 1), (12, 2)):
+        frames = [*range(12), *range(12 + gap, 24 + gap)]
+        still = list(range(24 + gap))
+        detections = VideoDetections.from_points(
+            np.array(frames + still),
+            np.vstack([path[frames], np.tile([900.0, 600.0], (len(still), 1))]),
+            40,
+        )
+        tracks = track_smot(detections, SmotParams(horizon=20))
+        moving = [i for i in tracks.track_ids() if tracks.track(int(i))[1][0, 0] < 800]
+        # 2 frames are well under half a 12-frame tracklet, 12 frames are not.
+        assert len(moving) == expected, gap
