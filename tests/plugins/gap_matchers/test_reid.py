@@ -28,24 +28,30 @@ def _frame(points: np.ndarray, colours: list[tuple[int, int, int]], seed: int) -
     return image
 
 
-@pytest.mark.parametrize("descriptor", ["lomo", "gog", "person-reid"])
-def test_reid_relinks_shuffled_people(descriptor: str) -> None:
-    at_a = np.array([[100.0, 80.0], [220.0, 90.0], [340.0, 85.0], [460.0, 95.0]])
-    order = [2, 0, 3, 1]
-    at_b = np.array([[150.0, 120.0], [300.0, 110.0], [420.0, 130.0], [560.0, 100.0]])
-    frame_a = _frame(at_a, COLOURS, 1)
-    frame_b = _frame(at_b, [COLOURS[i] for i in order], 2)
-    video = VideoContext(name="v", path="v", n_frames=10, width=640, height=360)
-    problem = GapProblem(
+AT_A = np.array([[100.0, 80.0], [220.0, 90.0], [340.0, 85.0], [460.0, 95.0]])
+
+
+def _problem(
+    at_b: np.ndarray, colours_b: list[tuple[int, int, int]], detected: int = 4
+) -> GapProblem:
+    """Four people at ``AT_A`` on frame a, at ``at_b`` on frame b; the first ``detected`` are."""
+    return GapProblem(
         interval=Interval(2, 8),
         target_ids=np.arange(1, 5),
-        histories=[p[None, :] for p in at_a],
-        states=[TargetState(i + 1, p, np.zeros(2)) for i, p in enumerate(at_a)],
-        detections=Detections.from_points(at_b),
-        frame_a=frame_a,
-        frame_b=frame_b,
-        video=video,
+        histories=[p[None, :] for p in AT_A],
+        states=[TargetState(i + 1, p, np.zeros(2)) for i, p in enumerate(AT_A)],
+        detections=Detections.from_points(at_b[:detected]),
+        frame_a=_frame(AT_A, COLOURS, 1),
+        frame_b=_frame(at_b, colours_b, 2),
+        video=VideoContext(name="v", path="v", n_frames=10, width=640, height=360),
     )
+
+
+@pytest.mark.parametrize("descriptor", ["lomo", "gog", "person-reid"])
+def test_reid_relinks_shuffled_people(descriptor: str) -> None:
+    order = [2, 0, 3, 1]
+    at_b = np.array([[150.0, 120.0], [300.0, 110.0], [420.0, 130.0], [560.0, 100.0]])
+    problem = _problem(at_b, [COLOURS[i] for i in order])
     matcher = load_registry().build_stage(
         "gap_matcher", {"type": "reid", "params": {"descriptor": descriptor}}
     )
@@ -59,20 +65,9 @@ def test_reid_relinks_shuffled_people(descriptor: str) -> None:
 def test_window_tps_rpm_deep_appearance_is_smallest_for_the_same_person() -> None:
     from trackfw_plugins.gap_matchers.window_tps_rpm import appearance_matrix
 
-    at_a = np.array([[100.0, 80.0], [220.0, 90.0], [340.0, 85.0], [460.0, 95.0]])
     order = [2, 0, 3, 1]
     at_b = np.array([[150.0, 120.0], [300.0, 110.0], [420.0, 130.0], [560.0, 100.0]])
-    video = VideoContext(name="v", path="v", n_frames=10, width=640, height=360)
-    problem = GapProblem(
-        interval=Interval(2, 8),
-        target_ids=np.arange(1, 5),
-        histories=[p[None, :] for p in at_a],
-        states=[TargetState(i + 1, p, np.zeros(2)) for i, p in enumerate(at_a)],
-        detections=Detections.from_points(at_b),
-        frame_a=_frame(at_a, COLOURS, 1),
-        frame_b=_frame(at_b, [COLOURS[i] for i in order], 2),
-        video=video,
-    )
+    problem = _problem(at_b, [COLOURS[i] for i in order])
     matcher = load_registry().build_stage(
         "gap_matcher", {"type": "window-tps-rpm", "params": {"appearance_region": "person-reid"}}
     )
@@ -101,20 +96,9 @@ def test_reid_scores_every_candidate_and_keeps_the_one_that_finds_the_undetected
 ) -> None:
     from trackfw_plugins.gap_matchers.reid import ReidGapMatcher, ReidParams
 
-    at_a = np.array([[100.0, 80.0], [220.0, 90.0], [340.0, 85.0], [460.0, 95.0]])
-    at_b = at_a + np.array([30.0, 20.0])
-    video = VideoContext(name="v", path="v", n_frames=10, width=640, height=360)
+    at_b = AT_A + np.array([30.0, 20.0])
     # Target 4 is on frame b but not detected: only the other three are.
-    problem = GapProblem(
-        interval=Interval(2, 8),
-        target_ids=np.arange(1, 5),
-        histories=[p[None, :] for p in at_a],
-        states=[TargetState(i + 1, p, np.zeros(2)) for i, p in enumerate(at_a)],
-        detections=Detections.from_points(at_b[:3]),
-        frame_a=_frame(at_a, COLOURS, 1),
-        frame_b=_frame(at_b, COLOURS, 2),
-        video=video,
-    )
+    problem = _problem(at_b, COLOURS, detected=3)
     astray = at_b.copy()
     astray[3] = [600.0, 40.0]  # background, nobody there
     candidates = [Prediction("ar1", astray), Prediction("ar2", at_b.copy())]
