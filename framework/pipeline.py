@@ -24,6 +24,7 @@ from trackfw.errors import UserError, quoted
 from trackfw.registry import Registry, unknown_name_message
 from trackfw.stages import (
     BATCH_KINDS,
+    NESTED_KINDS,
     STAGE_KINDS,
     BatchStages,
     FiniteModel,
@@ -266,7 +267,9 @@ def parse_assignments(assignments: list[str], option: str) -> dict[str, Any]:
         except YamlTooLargeError as error:
             raise UserError(f"{option} {quoted(assignment)}: {error.problem}.") from None
         except yaml.YAMLError:
-            raise UserError(f"{option} {quoted(assignment)}: the value is not valid YAML.") from None
+            raise UserError(
+                f"{option} {quoted(assignment)}: the value is not valid YAML."
+            ) from None
     return params
 
 
@@ -357,13 +360,38 @@ def resolve_stage(
     unknown = [key for key in spec if key not in STAGE_KEYS]
     for key in unknown:
         line = _unknown_key(path, key, STAGE_KEYS)
-        if kind not in STAGE_KINDS:
+        if kind in NESTED_KINDS:
             # Before issue 15 a nested stage's parameters sat beside its type.
             line += (
                 f"; a {kind}'s parameters go under 'params' ({{type: ..., params: {{{key}: ...}}}})"
             )
         problems.append(line)
-    type_name = spec.get("type")
+    cls = _stage_class(registry, kind, spec.get("type"), path, problems)
+    params = spec.get("params") or {}
+    if cls is None:
+        return None
+    if not isinstance(params, Mapping):
+        problems.append(f"{path}.params: expected a mapping of parameters, got {quoted(params)}")
+        return None
+    params = dict(params)
+    nested = _resolve_nested(registry, cls, params, path, problems)
+    try:
+        model = cls.Params(**params)
+    except ValidationError as error:
+        problems.extend(_pydantic_problems(error, f"{path}.params", cls.Params))
+        return None
+    except UserError as error:
+        problems.extend(f"{path}.params: {line}" for line in error.lines)
+        return None
+    if unknown or nested is None:
+        return None
+    return StageConfig(kind, cls.name, cls, model, nested)
+
+
+def _stage_class(
+    registry: Registry, kind: str, type_name: Any, path: str, problems: list[str]
+) -> type[Stage[Any]] | None:
+    """The class registered as ``type_name`` for ``kind``, or None with a problem line."""
     if not isinstance(type_name, str) or not type_name:
         problems.append(
             f"{path}.type: expected the name of a {kind.replace('_', ' ')} plugin ({', '.join(registry.names(kind))})"
@@ -374,12 +402,17 @@ def resolve_stage(
             f"{path}.type: {unknown_name_message(kind, type_name, registry.names(kind))}"
         )
         return None
-    cls = registry.stages[(kind, type_name)].cls
-    params = spec.get("params") or {}
-    if not isinstance(params, Mapping):
-        problems.append(f"{path}.params: expected a mapping of parameters, got {quoted(params)}")
-        return None
-    params = dict(params)
+    return registry.stages[(kind, type_name)].cls
+
+
+def _resolve_nested(
+    registry: Registry,
+    cls: type[Stage[Any]],
+    params: dict[str, Any],
+    path: str,
+    problems: list[str],
+) -> dict[str, StageConfig] | None:
+    """Pop and resolve ``cls``'s nested stages from ``params``; None when one is invalid."""
     nested: dict[str, StageConfig] = {}
     for key, nested_kind in cls.nested.items():
         nested_spec = params.pop(key, None)
@@ -390,17 +423,7 @@ def resolve_stage(
         )
         if checked is not None:
             nested[key] = checked
-    try:
-        model = cls.Params(**params)
-    except ValidationError as error:
-        problems.extend(_pydantic_problems(error, f"{path}.params", cls.Params))
-        return None
-    except UserError as error:
-        problems.extend(f"{path}.params: {line}" for line in error.lines)
-        return None
-    if unknown or len(nested) != len(cls.nested):
-        return None
-    return StageConfig(kind, type_name, cls, model, nested)
+    return nested if len(nested) == len(cls.nested) else None
 
 
 def _pipeline_kinds(
@@ -483,6 +506,43 @@ def load_pipeline(
     )
 
 
+def _engine_options(data: Any, problems: list[str]) -> EngineOptions:
+    """The ``engine:`` options (defaults where they are invalid, with a problem line)."""
+    try:
+        return EngineOptions(**(data or {}))
+    except ValidationError as error:
+        problems.extend(_pydantic_problems(error, "engine", EngineOptions))
+    except TypeError:
+        problems.append("engine: expected a mapping")
+    return EngineOptions()
+
+
+def _resolve_stages(
+    registry: Registry, stages_data: Any, engine: EngineOptions, problems: list[str]
+) -> dict[str, StageConfig]:
+    """Kind -> validated stage for every kind the pipeline needs."""
+    stages: dict[str, StageConfig] = {}
+    if not isinstance(stages_data, Mapping):
+        problems.append(
+            f"stages: expected a mapping with {', '.join(STAGE_KINDS)} (a segment pipeline) or"
+            f" {', '.join(BATCH_KINDS)} (a batch pipeline)"
+        )
+        return stages
+    for kind in stages_data:
+        if kind not in PIPELINE_KINDS:
+            problems.append(_unknown_key("stages", kind, PIPELINE_KINDS))
+    for kind in _pipeline_kinds(stages_data, engine, problems):
+        if kind not in stages_data:
+            problems.append(
+                f"stages.{kind}: missing; expected {{type: ...}} ({', '.join(registry.names(kind))})"
+            )
+            continue
+        checked = resolve_stage(registry, kind, stages_data[kind], f"stages.{kind}", problems)
+        if checked is not None:
+            stages[kind] = checked
+    return stages
+
+
 def validate_pipeline(
     data: dict[str, Any],
     registry: Registry,
@@ -506,34 +566,8 @@ def validate_pipeline(
     default_input = data.get("input")
     if default_input is not None and not isinstance(default_input, str):
         problems.append(f"input: expected a path or builtin:NAME, got {quoted(default_input)}")
-    engine = EngineOptions()
-    try:
-        engine = EngineOptions(**(data.get("engine") or {}))
-    except ValidationError as error:
-        problems.extend(_pydantic_problems(error, "engine", EngineOptions))
-    except TypeError:
-        problems.append("engine: expected a mapping")
-    stages_data = data.get("stages")
-    stages: dict[str, StageConfig] = {}
-    if not isinstance(stages_data, Mapping):
-        problems.append(
-            f"stages: expected a mapping with {', '.join(STAGE_KINDS)} (a segment pipeline) or"
-            f" {', '.join(BATCH_KINDS)} (a batch pipeline)"
-        )
-    else:
-        for kind in stages_data:
-            if kind not in PIPELINE_KINDS:
-                problems.append(_unknown_key("stages", kind, PIPELINE_KINDS))
-        kinds = _pipeline_kinds(stages_data, engine, problems)
-        for kind in kinds:
-            if kind not in stages_data:
-                problems.append(
-                    f"stages.{kind}: missing; expected {{type: ...}} ({', '.join(registry.names(kind))})"
-                )
-                continue
-            checked = resolve_stage(registry, kind, stages_data[kind], f"stages.{kind}", problems)
-            if checked is not None:
-                stages[kind] = checked
+    engine = _engine_options(data.get("engine"), problems)
+    stages = _resolve_stages(registry, data.get("stages"), engine, problems)
     if problems:
         raise UserError(*(f"{source}: {line}" for line in problems))
     pipeline = Pipeline(
