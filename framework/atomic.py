@@ -90,10 +90,29 @@ def check_output_folder(path: str | os.PathLike[str], field: str) -> None:
         raise UserError(
             f"{field}: {target} is an existing file; expected a folder (created when missing)."
         )
-    existing = target
-    while not existing.exists():
-        if existing.parent == existing:  # pragma: no cover - the root always exists
-            break
+    _check_writable_above(target, target, field)
+
+
+def check_output_file(path: str | os.PathLike[str], field: str) -> None:
+    """Fail early when ``path`` cannot be written as a file (it may exist: it is replaced).
+
+    Raises:
+        UserError: when ``path`` is a folder, lies inside a file or its folder cannot be written.
+    """
+    from trackfw.errors import UserError
+
+    target = Path(path)
+    if target.is_dir():
+        raise UserError(f"{field}: {target} is a folder; expected a file name.")
+    _check_writable_above(target.parent, target, field)
+
+
+def _check_writable_above(folder: Path, target: Path, field: str) -> None:
+    """The nearest existing folder on the way to ``folder`` is a writable folder."""
+    from trackfw.errors import UserError
+
+    existing = folder
+    while not existing.exists() and existing.parent != existing:
         existing = existing.parent
     if not existing.is_dir():
         raise UserError(
@@ -104,17 +123,3 @@ def check_output_folder(path: str | os.PathLike[str], field: str) -> None:
             f"{field}: {target}: the folder {existing} is not writable; expected a folder you can"
             " write to."
         )
-
-
-def check_output_file(path: str | os.PathLike[str], field: str) -> None:
-    """Fail early when ``path`` cannot be written as a file (it may exist: it is replaced).
-
-    Raises:
-        UserError: when ``path`` is a folder or its folder cannot be written.
-    """
-    from trackfw.errors import UserError
-
-    target = Path(path)
-    if target.is_dir():
-        raise UserError(f"{field}: {target} is a folder; expected a file name.")
-    check_output_folder(target.parent, field)

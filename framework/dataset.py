@@ -19,6 +19,7 @@ was expected.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +41,14 @@ VIDEO_FILE = "video.mp4"
 IMAGE_FOLDER = "img1"
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".m4v")
+
+#: meta.json numbers the readers rely on: the smallest valid value and what the error says.
+META_NUMBERS: dict[str, tuple[float, str]] = {
+    "n_frames": (0, "a whole number of frames >= 0"),
+    "width": (1, "a whole number of pixels >= 1"),
+    "height": (1, "a whole number of pixels >= 1"),
+    "fps": (1e-6, "a positive number of frames per second"),
+}
 
 
 def _video_files(folder: Path) -> list[Path]:
@@ -142,6 +151,20 @@ def read_meta(video_dir: Path) -> dict[str, Any]:
         raise UserError(f"{path}: line {error.lineno}: invalid JSON ({error.msg}).") from None
     if not isinstance(data, dict):
         raise UserError(f"{path}: expected a JSON object at the top level.")
+    for key, (low, expected) in META_NUMBERS.items():
+        value = data.get(key)
+        if value is None:
+            continue
+        whole = key != "fps"
+        valid = (
+            isinstance(value, int | float)
+            and not isinstance(value, bool)
+            and math.isfinite(value)
+            and value >= low
+            and (not whole or float(value).is_integer())
+        )
+        if not valid:
+            raise UserError(f"{path}: {key} is {json.dumps(value)}; expected {expected}.")
     return data
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -71,6 +72,9 @@ def bench_command(
     from trackfw_plugins.bench.sweep import plan_sweep
 
     error_console = Console(stderr=True)
+    # The table is built after every job ran; a bad threshold must not wait for that.
+    if not (math.isfinite(dist) and dist > 0):
+        raise UserError(f"--dist is {dist}; expected a positive number of pixels.")
     registry = get_registry()
     plan = plan_sweep(
         registry,

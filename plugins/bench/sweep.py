@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from trackfw.atomic import write_json
+from trackfw.atomic import check_output_folder, write_json
 from trackfw.dataset import list_videos, load_video
 from trackfw.engine import check_videos
 from trackfw.errors import UserError
@@ -173,6 +173,9 @@ def plan_sweep(
     dataset = Path(dataset)
     # Absolute paths: jobs may run in processes (or on machines) with another working folder.
     out_dir = Path(out_dir).resolve()
+    check_output_folder(out_dir, "--out")
+    if use_cache and cache_dir is not None:
+        check_output_folder(cache_dir, "--cache-dir")
     per_file = split_overrides(overrides, [Path(path) for path in pipeline_files])
     problems: list[str] = []
     planned: list[PlannedPipeline] = []

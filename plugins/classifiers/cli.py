@@ -11,7 +11,7 @@ from typing import Annotated, Any
 
 import typer
 
-from trackfw.atomic import write_json
+from trackfw.atomic import check_output_file, write_json
 from trackfw.errors import UserError
 from trackfw.pipeline import parse_assignments
 from trackfw_plugins.classifiers.online_rules import OnlineRules
@@ -76,6 +76,10 @@ def train_classifier(
         raise UserError(f"--replay-rounds {replay_rounds}: expected at least 1.")
     if flow_width < 16 or not c_max > 0:
         raise UserError("--flow-width must be at least 16 and --c-max positive.")
+    # Training takes minutes: a model or report that cannot be written is said before it.
+    check_output_file(out, "--out")
+    if report is not None:
+        check_output_file(report, "--report")
     try:
         rules = OnlineRules(
             enter_probability,

@@ -44,6 +44,7 @@ from trackfw.formats.annotations import (
     read_targets,
 )
 from trackfw.records import VideoContext
+from trackfw.video_io import check_frame_sizes, probe_container
 
 POSE_COLUMNS = ("frame", "pan", "tilt", "roll", "scale", "tx", "ty")
 #: Tolerance (pixels) for a gt point on the image border.
@@ -170,19 +171,17 @@ def _check_frames(video: Path, meta: dict[str, Any], problems: list[str]) -> int
         size = None if first is None else (first.shape[1], first.shape[0])
         if first is None:
             problems.append(f"{images[0]}: cannot read the image.")
-    else:
-        capture = cv2.VideoCapture(str(source))
         try:
-            if not capture.isOpened():
-                problems.append(f"{source}: cannot open the video.")
-                return None
-            count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
-            size = (
-                int(capture.get(cv2.CAP_PROP_FRAME_WIDTH)),
-                int(capture.get(cv2.CAP_PROP_FRAME_HEIGHT)),
-            )
-        finally:
-            capture.release()
+            check_frame_sizes(images)
+        except UserError as error:
+            problems.extend(error.lines)
+    else:
+        try:  # the probe keeps FFmpeg's own messages off the terminal
+            info = probe_container(source)
+        except UserError as error:
+            problems.extend(error.lines)
+            return None
+        count, size = info.n_frames, (info.width, info.height)
     meta_path = video / META_FILE
     expected = meta.get("n_frames")
     if isinstance(expected, int) and expected != count:
@@ -527,6 +526,10 @@ def check_command(
     directory: Annotated[Path, typer.Argument(help="Dataset folder (or one video folder).")],
 ) -> None:
     """Validate a dataset and print its statistics; exit code 2 when a problem is found."""
+    if not directory.is_dir():
+        what = "is a file" if directory.exists() else "no such folder"
+        raise UserError(f"{directory}: {what}; expected a dataset folder or one video folder.")
+    list_videos(directory)  # a folder without any video is one error line, not a report
     report = check_dataset(directory)
     print_report(report, directory)
     if report.problems:

@@ -8,6 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
+from trackfw.atomic import check_output_folder
 from trackfw.errors import UserError
 from trackfw_plugins.datasets.wear import (
     PREVIEW_FOLDER,
@@ -62,6 +63,7 @@ def wear_command(
 
     if intervals is not None and intervals < 1:
         raise UserError(f"--intervals is {intervals}; expected at least 1.")
+    check_output_folder(out, "--out")
     if not 3 <= min_length <= max_length:
         raise UserError(
             f"--min-length {min_length} / --max-length {max_length}; expected 3 <= min <= max."

@@ -54,12 +54,16 @@ def register(train_app: typer.Typer) -> None:
             ),
         ] = 0.0,
     ) -> None:
-        """Train the head classifier of the edgebox-cnn detector (needs PyTorch: trackfw[train])."""
+        """Train the head classifier of the edgebox-cnn detector (needs PyTorch: trackfw\\[train])."""
+        from trackfw.atomic import check_output_file
         from trackfw.errors import UserError
 
         datasets, sequences = dataset or [], mot or []
         if not datasets and not sequences:
             raise UserError("trackfw train detector: give at least one --dataset or --mot.")
+        check_output_file(out, "--out")
+        if dense_out is not None:
+            check_output_file(dense_out, "--dense-out")
         try:
             from trackfw_plugins.detectors.training.train import train_detector
         except ImportError as error:

@@ -39,6 +39,7 @@ def eval_command(
     """MOTA, MOTP, MOTA-In, MOTP-In, IDF1, HOTA and info-less precision/recall/F1 of a runs folder."""
     from rich.console import Console
 
+    from trackfw.atomic import check_output_folder
     from trackfw.dataset import list_videos
     from trackfw.progress import progress_bar
     from trackfw_plugins.evaluation.report import (
@@ -53,6 +54,11 @@ def eval_command(
         sensitivity_px=(20.0, 60.0) if sensitivity else (),
         detections=detections,
     )
+    # eval.csv and eval.json are written after every video is scored: say first if they cannot be.
+    if out is not None:
+        check_output_folder(out, "--out")
+    elif runs.is_dir():
+        check_output_folder(runs, "--runs")
     console = Console()
     n_videos = len(list_videos(dataset))
     with progress_bar(console, "videos", "remaining") as progress:

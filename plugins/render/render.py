@@ -15,6 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from trackfw.atomic import check_output_file
 from trackfw.dataset import frame_source_path, load_video
 from trackfw.errors import UserError
 from trackfw.formats.run import SUMMARY_FILE
@@ -143,6 +144,7 @@ def render_run(
     out = Path(out) if out is not None else folder / "render.mp4"
     if out.suffix.lower() != ".mp4":
         raise UserError(f"--out {out}: expected a file name ending in .mp4.")
+    check_output_file(out, "--out")
     # Checked before anything is written: a still that cannot exist is a mistyped number, and
     # silently rendering without it would hide that.
     outside = sorted(frame for frame in png_frames if not 1 <= frame <= source.n_frames)

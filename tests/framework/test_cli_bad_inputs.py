@@ -311,3 +311,65 @@ def test_frames_of_mixed_sizes_are_refused_when_meta_gives_the_size_too(
     code, stderr = run_cli(capsys, "run", pipeline_file(), "-i", video, "-o", output, "-q")
     assert_one_error_line(code, stderr, str(paths[1]), "64x40", "expected 64x48")
     assert not output.exists()
+
+
+# ------------------------------------------------------------ run, validate, bench: the sweep
+
+RUN = ["run", "pipeline.yaml", "-q", "-o", "out"]
+BENCH = ["bench", "pipeline.yaml", "--dataset", "data", "-q"]
+
+SWEEP = [
+    (["validate", "missing.yaml"], ["missing.yaml: pipeline file not found"]),
+    (["validate", "emptydir"], ["emptydir", "pipeline file"]),
+    (["validate", "fake.mp4"], ["fake.mp4"]),
+    ([*RUN, "-i", "emptydir"], ["emptydir: no video found"]),
+    ([*RUN, "-i", "missing"], ["--input: 'missing' does not exist"]),
+    ([*RUN, "-i", "builtin:nope"], ["unknown input 'nope'"]),
+    ([*RUN, "-i", "data", "--set", "noequals"], ["--set 'noequals'", "PATH=VALUE"]),
+    ([*RUN, "-i", "data", "--set", "stages.tracker.params.zzz=1"], ["zzz: unknown parameter"]),
+    ([*RUN, "-i", "fake.mp4"], ["fake.mp4: not a video FFmpeg can open"]),
+    (["run", "pipeline.yaml", "-q", "-i", "data", "-o", "file.txt"], ["--output", "file.txt"]),
+    ([*BENCH, "-o", "file.txt"], ["--out", "file.txt is an existing file"]),
+    ([*BENCH, "-o", "b", "--cache-dir", "file.txt"], ["--cache-dir", "file.txt"]),
+    ([*BENCH, "-o", "b", "--dist", "nan"], ["--dist is nan"]),
+    ([*BENCH, "-o", "b", "--timeout", "-1"], ["--timeout is -1.0"]),
+    ([*BENCH, "-o", "b", "--executor", "nope"], ["unknown executor 'nope'"]),
+    (["bench", "missing.yaml", "--dataset", "data", "-o", "b"], ["missing.yaml"]),
+    (["bench", "pipeline.yaml", "--dataset", "missing", "-o", "b"], ["missing: no such file"]),
+]
+
+
+@pytest.mark.parametrize(("arguments", "fragments"), SWEEP, ids=lambda v: "-".join(v)[:60])
+def test_core_commands_refuse_bad_input_in_one_line(
+    arguments: list[str],
+    fragments: list[str],
+    in_bad_input_workspace: Path,
+    bad_input: Callable[..., str],
+) -> None:
+    bad_input(arguments, *fragments)
+
+
+@pytest.mark.parametrize(
+    ("meta", "fragments"),
+    [
+        ('{"n_frames": "abc", "width": 640, "height": 480}', ['n_frames is "abc"', "whole number"]),
+        ('{"n_frames": 40, "width": -5, "height": 480}', ["width is -5", ">= 1"]),
+        ('{"n_frames": 40.5, "width": 640, "height": 480}', ["n_frames is 40.5"]),
+        ('{"n_frames": 40, "width": 640, "height": 480, "fps": "fast"}', ['fps is "fast"']),
+        ('{"n_frames": 40, "width": 640, "height": true}', ["height is true"]),
+    ],
+    ids=["n_frames-text", "width-negative", "n_frames-fraction", "fps-text", "height-bool"],
+)
+def test_meta_json_numbers_are_checked(
+    meta: str,
+    fragments: list[str],
+    pipeline_file: Callable[..., Path],
+    points_video: Callable[..., Path],
+    tmp_path: Path,
+    bad_input: Callable[..., str],
+) -> None:
+    video = points_video(n_frames=40, intervals=((10, 15),))
+    (video / "meta.json").write_text(meta, encoding="utf-8")
+    output = tmp_path / "out"
+    bad_input(["run", pipeline_file(), "-i", video, "-o", output, "-q"], "meta.json", *fragments)
+    assert not output.exists()

@@ -9,7 +9,7 @@ from typing import Annotated
 
 import typer
 
-from trackfw.atomic import write_json
+from trackfw.atomic import check_output_folder, write_json
 from trackfw.errors import UserError
 
 from .generate import FORMATS, VideoResult, generate_dataset
@@ -133,6 +133,7 @@ def run_synth(
         raise UserError(f"--out {out}: is a file; expected a folder for the dataset.")
     if out.is_dir() and any(out.iterdir()) and not force:
         raise UserError(f"--out {out}: the folder is not empty; choose another one or add --force.")
+    check_output_folder(out, "--out")
     show_preview = (preset is not None) if preview is None else preview
     total_frames = sum(plan.n_frames for plan in plans)
     if echo:
