@@ -343,8 +343,11 @@ def _signals_as_interrupts() -> Iterator[None]:
         yield  # signal handlers can only be set from the main thread (e.g. tests in threads)
         return
     previous = {signum: signal.getsignal(signum) for signum in (signal.SIGINT, signal.SIGTERM)}
-    for signum in previous:
-        signal.signal(signum, interrupt)
+    for signum, handler in previous.items():
+        # An ignored signal stays ignored: a shell script's `trackfw run ... &` must not stop
+        # when the user presses Ctrl-C for the script's foreground command.
+        if handler is not signal.SIG_IGN:
+            signal.signal(signum, interrupt)
     try:
         yield
     finally:

@@ -373,3 +373,32 @@ def test_meta_json_numbers_are_checked(
     output = tmp_path / "out"
     bad_input(["run", pipeline_file(), "-i", video, "-o", output, "-q"], "meta.json", *fragments)
     assert not output.exists()
+
+
+def test_an_ignored_sigint_stays_ignored(
+    pipeline_file: Callable[..., Path],
+    points_video: Callable[..., Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Background jobs of a shell script inherit SIGINT ignored; Ctrl-C is not meant for them.
+    from trackfw.engine import Engine
+
+    real_run_video = Engine.run_video
+
+    def run_video(self: Engine, *arguments: object, **options: object) -> object:
+        os.kill(os.getpid(), signal.SIGINT)
+        return real_run_video(self, *arguments, **options)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Engine, "run_video", run_video)
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        code, stderr = run_cli(
+            capsys, "run", pipeline_file(), "-i", points_video(), "-o", tmp_path / "out", "-q"
+        )
+        assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert code == 0, stderr
+    assert (tmp_path / "out" / "video" / "summary.json").is_file()
