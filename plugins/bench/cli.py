@@ -67,6 +67,7 @@ def bench_command(
     from rich.console import Console
 
     from trackfw.cli import get_registry
+    from trackfw.errors import UserError
     from trackfw_plugins.bench.executor import ExecutorOptions, make_executor
     from trackfw_plugins.bench.report import build_table, markdown_table, write_table
     from trackfw_plugins.bench.sweep import plan_sweep
