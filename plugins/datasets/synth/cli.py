@@ -13,9 +13,19 @@ from trackfw.atomic import check_output_folder, write_json
 from trackfw.errors import UserError
 
 from .generate import FORMATS, VideoResult, generate_dataset
-from .presets import VideoPlan, WearerConfig, custom_plan, paper_plan, with_options
+from .presets import (
+    LEAVE_MIN_FRAMES,
+    VideoPlan,
+    WearerConfig,
+    custom_plan,
+    paper_plan,
+    with_leavers,
+    with_options,
+)
 
-PRESETS = ("paper",)
+PRESETS = ("paper", "paper-leave")
+#: Most targets per video ``--leave`` may send away (every preset has at least 5).
+MAX_LEAVE = 5
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -75,6 +85,7 @@ def build_plans(
     trajectories: Path | None,
     background: Path | None,
     wearer: WearerConfig | None = None,
+    leave: int | None = None,
 ) -> list[VideoPlan]:
     """The plans the command line asks for (validated, nothing written)."""
     if preset is not None and preset not in PRESETS:
@@ -85,6 +96,8 @@ def build_plans(
         raise UserError(f"--frames {frames}: expected at least 40 frames.")
     if intervals is not None and intervals < 0:
         raise UserError(f"--intervals {intervals}: expected 0 or more.")
+    if leave is not None and not 0 <= leave <= MAX_LEAVE:
+        raise UserError(f"--leave {leave}: expected 0 to {MAX_LEAVE} targets per video.")
     if not 1.0 <= fps <= 240.0:
         raise UserError(f"--fps {fps}: expected a frame rate between 1 and 240.")
     if trajectories is not None and not trajectories.exists():
@@ -92,13 +105,20 @@ def build_plans(
     if background is not None and not background.is_file():
         raise UserError(f"--background {background}: no such image file.")
     width, height = size
-    if preset == "paper":
+    if preset in ("paper", "paper-leave"):
         plans = paper_plan(seed, videos=videos, frames=frames, intervals=intervals, width=width,
                            height=height, fps=fps)
     else:
         plans = custom_plan(seed, videos=videos or 1, frames=frames or 300,
                             intervals=1 if intervals is None else intervals, width=width,
                             height=height, fps=fps)
+    if preset == "paper-leave":
+        # The paper's videos, one target each walking out of view and back; short videos get a
+        # longer tail so that the walk fits.
+        plans = with_leavers(plans, 1 if leave is None else leave, preset,
+                             None if frames is not None else LEAVE_MIN_FRAMES)
+    elif leave:
+        plans = with_leavers(plans, leave)
     return with_options(plans, None if trajectories is None else str(trajectories),
                         None if background is None else str(background), wearer=wearer)
 
@@ -122,13 +142,15 @@ def run_synth(
     max_pan: float = 30.0,
     max_roll: float = 10.0,
     scale_range: str = "0.7,1.4",
+    leave: int | None = None,
 ) -> list[VideoResult]:
     """Generate a synthetic dataset; what ``trackfw dataset synth`` runs."""
     started = time.perf_counter()
     if output_format not in FORMATS:
         raise UserError(f"--format {output_format!r}: expected one of {', '.join(FORMATS)}.")
     plans = build_plans(preset, seed, videos, frames, intervals, parse_size(size), fps,
-                        trajectories, background, wearer_config(max_pan, max_roll, scale_range))
+                        trajectories, background, wearer_config(max_pan, max_roll, scale_range),
+                        leave)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: is a file; expected a folder for the dataset.")
     if out.is_dir() and any(out.iterdir()) and not force:
@@ -156,6 +178,9 @@ def run_synth(
         "format": output_format,
         "trajectories": None if trajectories is None else str(trajectories),
         "background": None if background is None else str(background),
+        # Only written when targets leave, so that the files of every other dataset stay as
+        # they were before the option existed.
+        **({"leave": plans[0].leave} if plans[0].leave else {}),
         "videos": [{"name": plan.name, "n_frames": plan.n_frames, "site": plan.site.name,
                     "intervals": [[i.start + 1, i.end + 1, i.kind] for i in plan.intervals]}
                    for plan in plans],
@@ -174,7 +199,9 @@ def register(dataset_app: typer.Typer) -> None:
     def synth(
         out: Annotated[Path, typer.Option("--out", help="Dataset folder to create.")],
         preset: Annotated[str | None, typer.Option(
-            help="'paper': 30 videos from 10 sites like Yu et al. 2018 (26 with an interval).")] = None,
+            help="'paper': 30 videos from 10 sites like Yu et al. 2018 (26 with an interval);"
+            " 'paper-leave': the same with one target per video walking out of view and back"
+            " (videos of at least 450 frames).")] = None,
         seed: Annotated[int, typer.Option(help="Random seed; the same seed gives the same data.")] = 0,
         videos: Annotated[int | None, typer.Option(help="Number of videos (paper: 30, else 1).")] = None,
         frames: Annotated[int | None, typer.Option(
@@ -199,9 +226,12 @@ def register(dataset_app: typer.Typer) -> None:
             help="Largest roll change across an interval (degrees).")] = 10.0,
         scale_range: Annotated[str, typer.Option(
             help="Scale factor range across an interval, LOW,HIGH.")] = "0.7,1.4",
+        leave: Annotated[int | None, typer.Option(
+            help="Targets per video that walk out of view and come back (0-5; paper-leave: 1,"
+            " else 0).")] = None,
     ) -> None:
         """Render a synthetic wearable-camera dataset with ground truth."""
         run_synth(out, preset=preset, seed=seed, videos=videos, frames=frames, intervals=intervals,
                   size=size, fps=fps, trajectories=trajectories, background=background,
                   output_format=output_format, jobs=jobs, preview=preview, force=force,
-                  max_pan=max_pan, max_roll=max_roll, scale_range=scale_range)
+                  max_pan=max_pan, max_roll=max_roll, scale_range=scale_range, leave=leave)

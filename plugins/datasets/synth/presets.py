@@ -123,7 +123,11 @@ class IntervalPlan:
 
 @dataclass(frozen=True)
 class VideoPlan:
-    """Everything that decides one video (its seed fixes the rest)."""
+    """Everything that decides one video (its seed fixes the rest).
+
+    ``leave`` targets walk out of view and back once each (:mod:`.excursions`); 0 keeps the
+    group in view as in the paper.
+    """
 
     name: str
     seed: int
@@ -139,6 +143,7 @@ class VideoPlan:
     background: str | None = None
     hfov_deg: float = 75.0
     wearer: WearerConfig = WearerConfig()
+    leave: int = 0
 
 
 def _video_seed(seed: int, index: int) -> int:
@@ -281,6 +286,26 @@ def _paper_block(seed: int, block: int, frames: int | None, interval_count: int 
             preset="paper",
         ))
     return plans
+
+
+#: Shortest video of the ``paper-leave`` preset: a walk out of view and back takes 5-12 s.
+LEAVE_MIN_FRAMES = 450
+
+
+def with_leavers(plans: list[VideoPlan], leave: int, preset: str | None = None,
+                 min_frames: int | None = None) -> list[VideoPlan]:
+    """The same plans with ``leave`` targets per video walking out of view and back.
+
+    Args:
+        plans: the plans.
+        leave: targets per video that leave once (:mod:`.excursions`).
+        preset: a new preset name for the plans (None keeps theirs).
+        min_frames: lengthen shorter videos to this many frames (only their tail grows: the
+            intervals stay where they were).
+    """
+    return [replace(plan, leave=leave, preset=plan.preset if preset is None else preset,
+                    n_frames=plan.n_frames if min_frames is None else max(plan.n_frames, min_frames))
+            for plan in plans]
 
 
 def custom_plan(

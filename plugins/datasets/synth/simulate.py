@@ -14,6 +14,7 @@ import numpy as np
 from trackfw.arrays import FloatArray
 from trackfw.records import Interval
 
+from .excursions import add_excursions
 from .people import Crowd, builtin_crowd, trajectory_crowd
 from .presets import VideoPlan
 from .render import BODY_WIDTH_M, HEAD_DIAMETER_M
@@ -81,6 +82,10 @@ def simulate(plan: VideoPlan) -> Simulation:
     motion = plan_wearer(rng, crowd, plan.intervals, camera, site.eye_height, plan.fps, plan.wearer)
     if motion.extra_people is not None:
         crowd = crowd.append(motion.extra_people)
+    if plan.leave:
+        crowd, excursions = add_excursions(plan.seed, crowd, motion.poses, camera, plan.intervals,
+                                           plan.leave, plan.fps)
+        crowd.notes["excursions"] = [excursion.as_notes() for excursion in excursions]
     simulation = Simulation(plan=plan, camera=camera, crowd=crowd, motion=motion,
                             intervals=[Interval(a=i.start - 1, b=i.start + i.length, kind=i.kind)
                                        for i in plan.intervals],
