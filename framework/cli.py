@@ -78,13 +78,31 @@ def run_command(
         ),
     ] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+    region: Annotated[
+        str | None,
+        typer.Option(
+            "--region",
+            help="Targets: the detections inside this box x,y,w,h (pixels) on the start frame"
+            " (engine.init: region).",
+        ),
+    ] = None,
+    targets: Annotated[
+        Path | None,
+        typer.Option(
+            "--targets",
+            help="Targets from a file: rows frame,id,x,y under that header, or MOTChallenge text"
+            " whose boxes become head points; the run starts on its first frame"
+            " (engine.init: targets).",
+        ),
+    ] = None,
 ) -> None:
     """Track the targets through a video or every video of a dataset."""
     from trackfw.formats.run import unread_warning
     from trackfw.runner import prepare_run, run_prepared
 
     registry = get_registry()
-    prepared = prepare_run(registry, pipeline, input_path, output, overrides or [])
+    overrides = [*(overrides or []), *_target_overrides(region, targets)]
+    prepared = prepare_run(registry, pipeline, input_path, output, overrides)
     results = run_prepared(prepared, registry, show_progress=not quiet, console=error_console)
     table = Table(title=f"pipeline {prepared.pipeline.name}")
     # A video's name may fold; numbers never do. "proc. fps" is how fast trackfw processed the
@@ -109,6 +127,20 @@ def run_command(
         warning = unread_warning(run)
         if warning is not None:
             error_console.print(f"warning: {warning}", markup=False, highlight=False, soft_wrap=True)
+
+
+def _target_overrides(region: str | None, targets: Path | None) -> list[str]:
+    """``--set`` overrides for ``--region`` or ``--targets`` (validated here, one line each)."""
+    from trackfw.targets import parse_region
+
+    if region is not None and targets is not None:
+        raise UserError("--region and --targets both given; expected one way to choose the targets.")
+    if region is not None:
+        box = ", ".join(f"{value!r}" for value in parse_region(region))
+        return ["engine.init=region", f"engine.region=[{box}]", "engine.targets=null"]
+    if targets is not None:
+        return ["engine.init=targets", f"engine.targets={json.dumps(str(targets))}", "engine.region=null"]
+    return []
 
 
 def validate_command(

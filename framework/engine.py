@@ -2,9 +2,10 @@
 
 For each frame: detect, classify, and then either skip it (info-less), step the segment tracker
 (normal frame after a normal frame), or, on the first normal frame ``b`` after an interval, ask
-the gap matcher where the targets are and re-initialise the tracker there. Targets are fixed by
-the first frame's annotation and never created or deleted; a target outside the image is not
-reported on that frame.
+the gap matcher where the targets are and re-initialise the tracker there. Targets are chosen on
+the start frame as ``engine.init`` says (:mod:`trackfw.targets`: gt.csv, the detections, those
+inside a region, or a targets file) and never created or deleted; nothing is reported before the
+start frame, and a target outside the image is not reported on that frame.
 
 The pieces: :class:`trackfw.front.FrameFront` yields one observation per frame (live stages or
 a stage-cache replay), :class:`trackfw.segment.Segment` holds the targets between intervals and
@@ -27,11 +28,12 @@ from trackfw.dataset import frame_source_path
 from trackfw.errors import UserError
 from trackfw.front import FrameFront, FrameRecord, Observation
 from trackfw.pipeline import Pipeline
-from trackfw.records import NO_MATCH, Detections, GapSolution, Interval, VideoContext
+from trackfw.records import NO_MATCH, GapSolution, Interval, VideoContext
 from trackfw.registry import Registry
 from trackfw.segment import Segment
 from trackfw.stage_cache import CACHED_KINDS, StageCache
 from trackfw.stages import STAGE_KINDS, BatchStages, PipelineStages, Stage
+from trackfw.targets import TargetChooser
 
 ProgressCallback = Callable[[int], None]
 
@@ -133,24 +135,6 @@ def check_videos(stages: PipelineStages | BatchStages, videos: Sequence[VideoCon
             frame_source_path(Path(video.path))
 
 
-def _initial_targets(
-    video: VideoContext, mode: str, t: int, detections: Detections
-) -> tuple[np.ndarray, FloatArray, str]:
-    truth = video.ground_truth
-    annotated = truth.targets.get(t, {}) if truth is not None else {}
-    if mode == "gt" or (mode == "auto" and annotated):
-        if not annotated:
-            raise UserError(
-                f"{video.path}: gt.csv has no target on frame {t + 1}; expected the people of"
-                " interest annotated on the first frame (or engine.init: detections)."
-            )
-        ids = np.array(sorted(annotated), dtype=np.int64)
-        positions = np.array([annotated[int(i)] for i in ids], dtype=np.float64).reshape(-1, 2)
-        return ids, positions, "gt"
-    ids = np.arange(1, len(detections) + 1, dtype=np.int64)
-    return ids, detections.points.copy(), "detections"
-
-
 def _inside_image(
     reported: list[tuple[int, FloatArray]], target_ids: np.ndarray, width: int, height: int
 ) -> list[tuple[int, int, float, float]]:
@@ -176,6 +160,7 @@ class Engine:
     def __init__(self, pipeline: Pipeline, registry: Registry) -> None:
         self.pipeline = pipeline
         self.registry = registry
+        self.targets = TargetChooser(pipeline.engine)
 
     def run_video(
         self,
@@ -209,7 +194,7 @@ class Engine:
         front = FrameFront(
             video, stages.detector, stages.classifier, replay, stages_need_pixels(live), progress
         )
-        loop = _OnlineLoop(stages, video, self.pipeline.engine.init)
+        loop = _OnlineLoop(stages, video, self.targets)
         started = time.perf_counter()
         for observation in front:
             loop.observe(observation)
@@ -243,10 +228,11 @@ class _OnlineLoop:
     asks the gap matcher to re-link the targets and starts a new segment.
     """
 
-    def __init__(self, stages: PipelineStages, video: VideoContext, init: str) -> None:
+    def __init__(self, stages: PipelineStages, video: VideoContext, targets: TargetChooser) -> None:
         self.stages = stages
         self.video = video
-        self.init = init
+        self.targets = targets
+        self.start = targets.start_frame(video)
         self.frames: list[FrameRecord] = []
         self.gaps: list[GapRecord] = []
         self.reported: list[tuple[int, FloatArray]] = []
@@ -257,8 +243,8 @@ class _OnlineLoop:
     def observe(self, observation: Observation) -> None:
         """Advance the state machine by one frame."""
         self.frames.append(observation.record)
-        if not observation.readable:
-            return
+        if not observation.readable or (self.segment is None and observation.t < self.start):
+            return  # nothing is tracked before the start frame (engine.init)
         if self.segment is None:
             self.segment = self._initialise(observation)
         elif observation.infoless:
@@ -275,12 +261,11 @@ class _OnlineLoop:
         self.reported.append((observation.t, positions))
 
     def _initialise(self, observation: Observation) -> Segment:
-        target_ids, positions, self.initialised_from = _initial_targets(
-            self.video, self.init, observation.t, observation.detections
-        )
-        self.stages.tracker.initialise(observation.t, target_ids, positions)
+        chosen = self.targets.choose(self.video, observation.t, observation.detections)
+        self.initialised_from = chosen.source
+        self.stages.tracker.initialise(observation.t, chosen.ids, chosen.positions)
         _time(observation, "tracker", observation.done_at)
-        return Segment(target_ids)
+        return Segment(chosen.ids)
 
     def _relink(self, segment: Segment, b: Observation) -> Segment:
         """Solve the gap from the segment's frame ``a`` to ``b``; the new segment starts at b."""

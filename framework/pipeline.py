@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Literal, cast
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from trackfw.errors import UserError, quoted
 from trackfw.registry import Registry, unknown_name_message
@@ -56,13 +56,46 @@ class EngineOptions(FiniteModel):
     )
     init: str = Field(
         "auto",
-        pattern="^(auto|gt|detections)$",
-        description="targets on frame 1: 'gt' (gt.csv, as the paper), 'detections' (frame-1 detections), 'auto' (gt when present)",
+        pattern="^(auto|gt|detections|region|targets)$",
+        description="where the targets come from, on the start frame: 'gt' (gt.csv, as the paper), 'detections' (every detection), 'region' (the detections inside engine.region), 'targets' (the file engine.targets), 'auto' (gt when present, else detections)",
+    )
+    region: tuple[float, float, float, float] | None = Field(
+        None,
+        description="init: region: the box x,y,w,h in pixels whose detections (head points) become the targets",
+    )
+    targets: str | None = Field(
+        None,
+        description="init: targets: a file of target points, rows frame,id,x,y under that header, or MOTChallenge text whose boxes become head points; the run starts on its first frame",
+    )
+    start_frame: int | None = Field(
+        None,
+        ge=1,
+        description="1-based frame on which the targets are chosen (nothing is reported before it); null: the first readable frame, or with init: targets the file's first frame",
     )
     infoless_frames: Literal["keep", "drop"] = Field(
         "keep",
         description="batch pipelines: 'keep' gives the batch tracker every frame's detections, info-less frames included (the paper's protocol); 'drop' leaves out the frames the classifier calls info-less",
     )
+
+
+    @field_validator("region")
+    @classmethod
+    def _positive_box(
+        cls, region: tuple[float, float, float, float] | None
+    ) -> tuple[float, float, float, float] | None:
+        if region is not None and (region[2] <= 0 or region[3] <= 0):
+            raise ValueError(f"width and height are {region[2]:g} and {region[3]:g}; expected > 0")
+        return region
+
+    @model_validator(mode="after")
+    def _mode_has_its_input(self) -> EngineOptions:
+        for mode in ("region", "targets"):
+            given = getattr(self, mode) is not None
+            if self.init == mode and not given:
+                raise ValueError(f"init is {mode!r} and {mode} is not set; expected both")
+            if given and self.init != mode:
+                raise ValueError(f"{mode} is set and init is {self.init!r}; expected init: {mode}")
+        return self
 
 
 @dataclass(frozen=True)

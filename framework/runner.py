@@ -20,6 +20,7 @@ from trackfw.pipeline import Pipeline, load_pipeline
 from trackfw.progress import progress_bar
 from trackfw.records import VideoContext
 from trackfw.registry import Registry, unknown_name_message
+from trackfw.targets import TargetChooser
 
 BUILTIN_PREFIX = "builtin:"
 
@@ -73,6 +74,13 @@ def prepare_run(
         )
     videos = [load_video(path) for path in list_videos(source)]
     check_videos(pipeline.build(), videos)
+    if pipeline.is_batch and pipeline.engine.init in ("region", "targets"):
+        raise UserError(
+            f"{pipeline_path}: engine.init: {pipeline.engine.init}: the batch pipeline"
+            f" {pipeline.name!r} tracks every detection; choosing targets applies to segment"
+            " pipelines."
+        )
+    TargetChooser(pipeline.engine).check(videos)
     return PreparedRun(pipeline, videos, destination)
 
 
