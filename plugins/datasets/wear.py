@@ -92,6 +92,9 @@ class WearSettings:
     min_scale_ratio: float = 1.2
     min_targets: int = 5
     max_targets: int = 10
+    #: Exactly this many people of interest (at most the people in view on frame 1) instead of
+    #: a draw in min..max_targets; the others stay bystanders (heads.csv, not gt.csv).
+    n_targets: int | None = None
     output_size: tuple[int, int] | None = None
     frame_format: FrameFormat = FrameFormat.mp4
     jpeg_quality: int = 95
@@ -257,6 +260,9 @@ def plan_video(sequence: MotSequence, settings: WearSettings, seed: int, index: 
             " people well inside the first frame."
         )
     wanted = int(rng.integers(settings.min_targets, settings.max_targets + 1))
+    if settings.n_targets is not None:
+        # Drawn all the same, so that the rest of the video is what it is without --targets.
+        wanted = settings.n_targets
     anchor = projected[rng.choice(visible)]
     nearest = visible[
         np.argsort(np.linalg.norm(projected[visible] - anchor, axis=1), kind="stable")

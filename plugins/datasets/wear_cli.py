@@ -55,6 +55,14 @@ def wear_command(
     force: Annotated[
         bool, typer.Option(help="Write into a non-empty --out, replacing same-name videos.")
     ] = False,
+    targets: Annotated[
+        int | None,
+        typer.Option(
+            "--targets",
+            help="People of interest per video: the K nearest a random person on frame 1"
+            " (default: 5 to 10); the others are bystanders, in heads.csv and not in gt.csv.",
+        ),
+    ] = None,
 ) -> None:
     """Make virtual-wearer videos (sway, pose jumps, sky/group/path intervals) of a MOT sequence."""
     from rich.console import Console
@@ -64,6 +72,8 @@ def wear_command(
     if intervals is not None and intervals < 1:
         raise UserError(f"--intervals is {intervals}; expected at least 1.")
     check_output_folder(out, "--out")
+    if targets is not None and targets < 1:
+        raise UserError(f"--targets is {targets}; expected at least 1 person of interest.")
     if not 3 <= min_length <= max_length:
         raise UserError(
             f"--min-length {min_length} / --max-length {max_length}; expected 3 <= min <= max."
@@ -74,6 +84,7 @@ def wear_command(
         max_interval=max_length,
         output_size=parse_size(size) if size else None,
         frame_format=frame_format,
+        n_targets=targets,
     )
     console = Console(stderr=True)
     with progress_bar(console) as bar:

@@ -346,3 +346,38 @@ def test_real_tud_stadtmitte(shared_data: Path, tmp_path: Path) -> None:
         assert transform_points(homography, proxy)[0] == pytest.approx(
             [float(row["x"]), float(row["y"])], abs=0.05
         )
+
+
+def test_targets_k_chooses_k_people_of_interest_among_bystanders(
+    fake_sequence: Path, tmp_path: Path
+) -> None:
+    """``--targets 2``: gt.csv holds two people; the others stay in heads.csv as bystanders."""
+    from dataclasses import replace
+
+    out = tmp_path / "two"
+    generate_dataset(fake_sequence, out, seed=3, n_videos=2, settings=replace(TINY, n_targets=2))
+    for video in sorted(p for p in out.iterdir() if (p / "gt.csv").is_file()):
+        gt_ids = {int(row["id"]) for row in _rows(video / "gt.csv")}
+        head_ids = {int(row["id"]) for row in _rows(video / "heads.csv")}
+        meta = json.loads((video / "meta.json").read_text())
+        assert len(meta["targets"]) == 2 and gt_ids == set(meta["targets"])
+        assert gt_ids < head_ids and len(head_ids - gt_ids) >= 2
+        # The two are neighbours on frame 1, both in view there.
+        first = [row for row in _rows(video / "gt.csv") if row["frame"] == "1"]
+        assert len(first) == 2
+
+
+def test_targets_k_must_be_positive(fake_sequence: Path, tmp_path: Path) -> None:
+    app = typer.Typer()
+
+    @app.callback()
+    def main() -> None:
+        """Test group."""
+
+    wear_cli.register(app)
+    out = tmp_path / "bad"
+    result = CliRunner().invoke(
+        app, ["wear", "--mot", str(fake_sequence), "--out", str(out), "--targets", "0"]
+    )
+    assert isinstance(result.exception, UserError) and "--targets is 0" in str(result.exception)
+    assert not out.exists()
