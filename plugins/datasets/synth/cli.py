@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 
@@ -26,6 +27,8 @@ from .presets import (
 PRESETS = ("paper", "paper-leave")
 #: Most targets per video ``--leave`` may send away (every preset has at least 5).
 MAX_LEAVE = 5
+#: Most people of interest ``--targets`` may ask for (a group larger walks apart).
+MAX_TARGETS = 12
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -86,6 +89,7 @@ def build_plans(
     background: Path | None,
     wearer: WearerConfig | None = None,
     leave: int | None = None,
+    targets: int | None = None,
 ) -> list[VideoPlan]:
     """The plans the command line asks for (validated, nothing written)."""
     if preset is not None and preset not in PRESETS:
@@ -98,6 +102,10 @@ def build_plans(
         raise UserError(f"--intervals {intervals}: expected 0 or more.")
     if leave is not None and not 0 <= leave <= MAX_LEAVE:
         raise UserError(f"--leave {leave}: expected 0 to {MAX_LEAVE} targets per video.")
+    if targets is not None and not 1 <= targets <= MAX_TARGETS:
+        raise UserError(f"--targets {targets}: expected 1 to {MAX_TARGETS} people of interest.")
+    if targets is not None and leave is not None and leave > targets:
+        raise UserError(f"--leave {leave}: expected at most --targets ({targets}) leavers.")
     if not 1.0 <= fps <= 240.0:
         raise UserError(f"--fps {fps}: expected a frame rate between 1 and 240.")
     if trajectories is not None and not trajectories.exists():
@@ -112,6 +120,10 @@ def build_plans(
         plans = custom_plan(seed, videos=videos or 1, frames=frames or 300,
                             intervals=1 if intervals is None else intervals, width=width,
                             height=height, fps=fps)
+    if targets is not None:
+        # Fewer people of interest among the same bystanders: the case of a guard following two
+        # people in a crowd.
+        plans = [replace(plan, n_targets=targets) for plan in plans]
     if preset == "paper-leave":
         # The paper's videos, one target each walking out of view and back; short videos get a
         # longer tail so that the walk fits.
@@ -143,6 +155,7 @@ def run_synth(
     max_roll: float = 10.0,
     scale_range: str = "0.7,1.4",
     leave: int | None = None,
+    targets: int | None = None,
 ) -> list[VideoResult]:
     """Generate a synthetic dataset; what ``trackfw dataset synth`` runs."""
     started = time.perf_counter()
@@ -150,7 +163,7 @@ def run_synth(
         raise UserError(f"--format {output_format!r}: expected one of {', '.join(FORMATS)}.")
     plans = build_plans(preset, seed, videos, frames, intervals, parse_size(size), fps,
                         trajectories, background, wearer_config(max_pan, max_roll, scale_range),
-                        leave)
+                        leave, targets)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: is a file; expected a folder for the dataset.")
     if out.is_dir() and any(out.iterdir()) and not force:
@@ -229,9 +242,13 @@ def register(dataset_app: typer.Typer) -> None:
         leave: Annotated[int | None, typer.Option(
             help="Targets per video that walk out of view and come back (0-5; paper-leave: 1,"
             " else 0).")] = None,
+        targets: Annotated[int | None, typer.Option(
+            "--targets", help="People of interest per video (1-12; default: 5 to 10); the other"
+            " pedestrians are bystanders, in heads.csv and not in gt.csv.")] = None,
     ) -> None:
         """Render a synthetic wearable-camera dataset with ground truth."""
         run_synth(out, preset=preset, seed=seed, videos=videos, frames=frames, intervals=intervals,
                   size=size, fps=fps, trajectories=trajectories, background=background,
                   output_format=output_format, jobs=jobs, preview=preview, force=force,
-                  max_pan=max_pan, max_roll=max_roll, scale_range=scale_range, leave=leave)
+                  max_pan=max_pan, max_roll=max_roll, scale_range=scale_range, leave=leave,
+                  targets=targets)

@@ -122,3 +122,18 @@ def test_leave_applies_to_any_plan_and_frames_are_kept_when_given() -> None:
 
 PAPER_DIGEST = "dde78a5bc668cddc"
 CUSTOM_DIGEST = "b22ab2516f2ec093"
+
+
+def test_targets_k_makes_k_people_of_interest_among_bystanders(tmp_path: Path) -> None:
+    plan = build_plans(None, 2, 1, 120, 1, (640, 360), 30.0, None, None, targets=2)[0]
+    assert plan.n_targets == 2
+    simulation = simulate(plan)
+    gt_ids = {i for targets in simulation.targets.values() for i in targets}
+    head_ids = {person for _, person, *_ in simulation.heads}
+    assert gt_ids == {1, 2} and len(head_ids - gt_ids) > 2 * len(gt_ids)
+    for targets in (0, 13):
+        with pytest.raises(UserError, match="--targets"):
+            run_synth(tmp_path / "x", targets=targets, echo=False)
+    with pytest.raises(UserError, match="at most --targets"):
+        run_synth(tmp_path / "x", targets=2, leave=3, echo=False)
+    assert not (tmp_path / "x").exists()
