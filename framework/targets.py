@@ -71,6 +71,12 @@ def read_target_file(path: Path, n_frames: int | None = None) -> FramePoints:
     first = next((line for line in read_text(path, _EXPECTED).splitlines() if line.strip()), "")
     if not first:
         raise UserError(f"{path}: empty file; expected {_EXPECTED}.")
+    if _is_numeric(first) and len(first.split(",")) == len(GT_COLUMNS):
+        # Points without their header: say what is missing rather than "expected 6 values".
+        raise UserError(
+            f"{path}: line 1: {len(GT_COLUMNS)} values and no header; expected the header"
+            f" {','.join(GT_COLUMNS)} on line 1 above the points (the gt.csv layout)."
+        )
     points = _mot_points(path, n_frames) if _is_numeric(first) else read_targets(path, n_frames)
     if not points:
         raise UserError(f"{path}: no target rows; expected {_EXPECTED}.")

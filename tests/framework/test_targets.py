@@ -168,7 +168,8 @@ BAD_FILES = [
     ("3,1,10,20,40,100,1,1,1\n3,2,10,20,nan,100,1,1,1\n", "targets.csv: line 2: width is 'nan'"),
     ("3,1,10,20,40,100,1,1,1\n3,-2,10,20,40,100,1,1,1\n", "targets.csv: line 2: id -2 is not a"),
     ("3,1,10,20,40,0,1,1,1\n", "targets.csv: line 1: box 40x0; expected a positive size"),
-    ("3,1,10,20\n", "targets.csv: line 1: 4 values; expected at least 6"),
+    ("3,1,10,20\n", "targets.csv: line 1: 4 values and no header; expected the header"),
+    ("3,1,10,20,5\n", "targets.csv: line 1: 5 values; expected at least 6"),
 ]
 
 
