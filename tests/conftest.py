@@ -19,6 +19,19 @@ def shared_data() -> Path:
     return SHARED_DATA
 
 
+def assert_one_error_line(code: int, stderr: str, *fragments: str, expected_code: int = 2) -> str:
+    """The command exited with ``expected_code`` and said why in one ``error:`` line holding
+    ``fragments``, without a traceback. Returns the line."""
+    lines = [line for line in stderr.splitlines() if line.strip()]
+    assert code == expected_code, stderr
+    assert "Traceback" not in stderr
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("error: "), lines[0]
+    for fragment in fragments:
+        assert fragment in lines[0], (fragment, lines[0])
+    return lines[0]
+
+
 @pytest.fixture
 def bad_input(capfd: pytest.CaptureFixture[str]) -> Callable[..., str]:
     """Run ``trackfw ARGUMENTS`` in this process and check it failed as bad input should.
@@ -30,15 +43,9 @@ def bad_input(capfd: pytest.CaptureFixture[str]) -> Callable[..., str]:
 
     def check(arguments: Sequence[object], *fragments: str, code: int = 2) -> str:
         exit_code = main([str(argument) for argument in arguments])
-        stderr = capfd.readouterr().err
-        lines = [line for line in stderr.splitlines() if line.strip()]
-        assert exit_code == code, stderr
-        assert "Traceback" not in stderr
-        assert len(lines) == 1, stderr
-        assert lines[0].startswith("error: "), lines[0]
-        for fragment in fragments:
-            assert fragment in lines[0], (fragment, lines[0])
-        return lines[0]
+        return assert_one_error_line(
+            exit_code, capfd.readouterr().err, *fragments, expected_code=code
+        )
 
     return check
 
@@ -86,3 +93,31 @@ def in_bad_input_workspace(
     yield bad_input_workspace
     after = sorted(path for path in bad_input_workspace.rglob("*"))
     assert after == before, "a failed command wrote files"
+
+
+BadInputCase = tuple[Sequence[str], Sequence[str]]
+"""One row of a sweep: the ``trackfw`` arguments and the fragments its error line must hold."""
+
+
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    """A test taking ``bad_input_case`` runs once per row of its module's ``BAD_INPUT_CASES``.
+
+    Each command package's sweep (tests/**/test_cli_bad_inputs.py) is then a table and one line.
+    """
+    if "bad_input_case" in metafunc.fixturenames:
+        cases: list[BadInputCase] = metafunc.module.BAD_INPUT_CASES
+        ids = [
+            "-".join(arguments)[:60] + "-" + "-".join(fragments)[:60]
+            for arguments, fragments in cases
+        ]
+        metafunc.parametrize("bad_input_case", cases, ids=ids, indirect=True)
+
+
+@pytest.fixture
+def bad_input_case(
+    request: pytest.FixtureRequest, in_bad_input_workspace: Path, bad_input: Callable[..., str]
+) -> Callable[[], str]:
+    """Check one row of ``BAD_INPUT_CASES`` in :func:`in_bad_input_workspace`: call it to run the
+    command and assert it failed in one line (see :func:`bad_input`)."""
+    arguments, fragments = request.param
+    return lambda: bad_input(arguments, *fragments)

@@ -27,6 +27,12 @@ def distance_matrix(predictions: FloatArray, detections: FloatArray) -> FloatArr
     return np.sqrt(np.einsum("kni,kni->kn", difference, difference))
 
 
+def _unassigned(cost: FloatArray) -> tuple[FloatArray, IntArray]:
+    """The ``(K, N)`` cost as float64 and a ``(K,)`` assignment with every row unassigned (-1)."""
+    cost = np.asarray(cost, dtype=np.float64)
+    return cost, np.full(cost.shape[0], -1, dtype=np.int64)
+
+
 def hungarian(cost: FloatArray, gate: float | None = None) -> IntArray:
     """Optimal one-to-one assignment; returns ``(K,)`` column per row, ``-1`` when unassigned.
 
@@ -38,10 +44,8 @@ def hungarian(cost: FloatArray, gate: float | None = None) -> IntArray:
     >>> hungarian(np.array([[1.0, 90.0], [2.0, 80.0]]), gate=50.0).tolist()
     [0, -1]
     """
-    cost = np.asarray(cost, dtype=np.float64)
-    rows, columns = cost.shape
-    assignment = np.full(rows, -1, dtype=np.int64)
-    if rows == 0 or columns == 0:
+    cost, assignment = _unassigned(cost)
+    if cost.size == 0:
         return assignment
     gated = cost if gate is None else np.where(cost > gate, FORBIDDEN_COST, cost)
     row_index, column_index = linear_sum_assignment(gated)
@@ -62,11 +66,10 @@ def greedy_nearest(cost: FloatArray, gate: float | None = None) -> IntArray:
     >>> greedy_nearest(np.array([[1.0, 2.0], [1.5, 9.0]]), gate=5.0).tolist()
     [0, -1]
     """
-    cost = np.asarray(cost, dtype=np.float64)
-    rows, columns = cost.shape
-    assignment = np.full(rows, -1, dtype=np.int64)
-    if rows == 0 or columns == 0:
+    cost, assignment = _unassigned(cost)
+    if cost.size == 0:
         return assignment
+    rows, columns = cost.shape
     # A stable sort on the flattened (row-major) matrix gives the (row, column) tie-break.
     order = np.argsort(cost, axis=None, kind="stable")
     row_taken = np.zeros(rows, dtype=bool)

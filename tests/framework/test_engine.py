@@ -231,44 +231,27 @@ def test_engine_accepts_callable_progress(points_video, pipeline_file) -> None:
     assert seen == list(range(30))
 
 
+@pytest.mark.parametrize(
+    ("gt", "message"),
+    [
+        ("frame,id,x,y\n1,1,10,10\n1,1,12,12\n", "gt.csv: line 3: id 1 appears twice in frame 1"),
+        ("frame,id,x,y\n1,1,nan,10\n", "line 2: x is 'nan'; expected a finite number"),
+    ],
+)
 def test_dataset_with_broken_ground_truth_names_file_and_line(
-    tmp_path: Path, pipeline_file, capsys
+    gt: str, message: str, tmp_path: Path, pipeline_file, capsys
 ) -> None:
     from trackfw.cli import main
 
     video_dir = tmp_path / "v"
     video_dir.mkdir()
     (video_dir / "meta.json").write_text(json.dumps({"n_frames": 5, "width": 64, "height": 48}))
-    (video_dir / "gt.csv").write_text("frame,id,x,y\n1,1,10,10\n1,1,12,12\n")
+    (video_dir / "gt.csv").write_text(gt)
+    output = tmp_path / "o"
     assert (
-        main(
-            [
-                "run",
-                str(pipeline_file()),
-                "--input",
-                str(video_dir),
-                "--output",
-                str(tmp_path / "o"),
-            ]
-        )
-        == 2
+        main(["run", str(pipeline_file()), "--input", str(video_dir), "--output", str(output)]) == 2
     )
-    assert "gt.csv: line 3: id 1 appears twice in frame 1" in capsys.readouterr().err
-    (video_dir / "gt.csv").write_text("frame,id,x,y\n1,1,nan,10\n")
-    assert (
-        main(
-            [
-                "run",
-                str(pipeline_file()),
-                "--input",
-                str(video_dir),
-                "--output",
-                str(tmp_path / "o"),
-            ]
-        )
-        == 2
-    )
-    assert "line 2: x is 'nan'; expected a finite number" in capsys.readouterr().err
+    assert message in capsys.readouterr().err
 
 
 def test_init_from_detections_without_gt(tmp_path: Path, pipeline_file, points_video) -> None:

@@ -78,39 +78,48 @@ def _eval_main(dataset: Path, runs: Path) -> int:
     return main(["eval", "--dataset", str(dataset), "--runs", str(runs)])
 
 
-def test_eval_refuses_a_run_without_summary_naming_the_video(
-    tmp_path: Path,
-    make_video: Callable[..., Path],
-    make_run: Callable[..., Path],
-    capsys: pytest.CaptureFixture[str],
+def _kill_one_run_before_its_summary(
+    data: Path, runs: Path, make_video: Callable[..., Path], make_run: Callable[..., Path]
 ) -> None:
     truth = {t: {1: (100.0, 200.0)} for t in range(5)}
     for name in ("a", "killed"):
-        make_video(tmp_path / "data", name, truth, n_frames=5)
-        make_run(tmp_path / "runs", name, truth, n_frames=5)
+        make_video(data, name, truth, n_frames=5)
+        make_run(runs, name, truth, n_frames=5)
     # summary.json is written last: without it the run was interrupted.
-    (tmp_path / "runs" / "killed" / "summary.json").unlink()
-    assert _eval_main(tmp_path / "data", tmp_path / "runs") == 2
-    lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 1 and "'killed'" in lines[0] and "summary.json" in lines[0], lines
-    assert not (tmp_path / "runs" / "eval.csv").exists()
+    (runs / "killed" / "summary.json").unlink()
 
 
-def test_eval_refuses_a_cut_short_frames_csv_naming_the_video(
+def _cut_frames_csv_short(
+    data: Path, runs: Path, make_video: Callable[..., Path], make_run: Callable[..., Path]
+) -> None:
+    truth = {t: {1: (100.0, 200.0)} for t in range(10)}
+    make_video(data, "cut", truth, n_frames=10)
+    run = make_run(runs, "cut", truth, n_frames=10)
+    frames = (run / "frames.csv").read_text().splitlines()
+    (run / "frames.csv").write_text("\n".join(frames[:5]) + "\n")  # header and 4 of 10 rows
+
+
+@pytest.mark.parametrize(
+    ("damage", "fragments"),
+    [
+        (_kill_one_run_before_its_summary, ["'killed'", "summary.json"]),
+        (_cut_frames_csv_short, ["frames.csv", "'cut'", "4 of 10"]),
+    ],
+    ids=["no-summary", "cut-frames-csv"],
+)
+def test_eval_refuses_a_damaged_run_naming_the_video(
+    damage: Callable[..., None],
+    fragments: list[str],
     tmp_path: Path,
     make_video: Callable[..., Path],
     make_run: Callable[..., Path],
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    truth = {t: {1: (100.0, 200.0)} for t in range(10)}
-    make_video(tmp_path / "data", "cut", truth, n_frames=10)
-    run = make_run(tmp_path / "runs", "cut", truth, n_frames=10)
-    frames = (run / "frames.csv").read_text().splitlines()
-    (run / "frames.csv").write_text("\n".join(frames[:5]) + "\n")  # header and 4 of 10 rows
+    damage(tmp_path / "data", tmp_path / "runs", make_video, make_run)
     assert _eval_main(tmp_path / "data", tmp_path / "runs") == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1, lines
-    assert "frames.csv" in lines[0] and "'cut'" in lines[0] and "4 of 10" in lines[0], lines
+    assert all(fragment in lines[0] for fragment in fragments), lines
     assert not (tmp_path / "runs" / "eval.csv").exists()
 
 
@@ -154,7 +163,10 @@ def test_eval_json_records_the_pipeline_hash(
 
     # Running v1 again with the first configuration makes the folder consistent.
     pipeline = tmp_path / "oracle.yaml"
-    assert main(["run", str(pipeline), "--input", str(dataset / "v1"), "--output", str(runs), "-q"]) == 0
+    assert (
+        main(["run", str(pipeline), "--input", str(dataset / "v1"), "--output", str(runs), "-q"])
+        == 0
+    )
     assert _eval_main(dataset, runs) == 0, capsys.readouterr().err
     document = json.loads((runs / "eval.json").read_text())
     assert document["pipeline_hash"] == first
