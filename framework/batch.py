@@ -23,7 +23,7 @@ from trackfw.pipeline import Pipeline
 from trackfw.records import Detections, Tracks, VideoContext
 from trackfw.registry import Registry
 from trackfw.stage_cache import CACHED_KINDS, StageCache
-from trackfw.stages import BatchStages, Stage
+from trackfw.stages import Stage
 
 
 def run_batch_video(
@@ -34,9 +34,7 @@ def run_batch_video(
     cache: StageCache | None = None,
 ) -> VideoRun:
     """Run a batch pipeline over one video (see :meth:`trackfw.engine.Engine.run_video`)."""
-    stages = pipeline.build()
-    if not isinstance(stages, BatchStages):
-        raise TypeError(f"pipeline {pipeline.name!r} is not a batch pipeline")
+    stages = pipeline.build_batch()
     _check_ground_truth(stages, video)
     key = cache.key(pipeline, video, registry) if cache is not None else ""
     replay = cache.load(key, video.n_frames, video.name) if cache is not None else None

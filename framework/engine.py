@@ -185,8 +185,7 @@ class Engine:
             from trackfw.batch import run_batch_video  # it imports this module
 
             return run_batch_video(self.pipeline, self.registry, video, progress, cache)
-        stages = self.pipeline.build()
-        assert isinstance(stages, PipelineStages)
+        stages = self.pipeline.build_segment()
         _check_ground_truth(stages, video)
         key = cache.key(self.pipeline, video, self.registry) if cache is not None else ""
         replay = cache.load(key, video.n_frames, video.name) if cache is not None else None

@@ -172,11 +172,31 @@ class Pipeline:
 
     def build(self) -> PipelineStages | BatchStages:
         """Fresh stage instances, one per kind (call once per video)."""
-        # resolve_stage checked each class against its kind's base when it was registered.
-        built = {kind: spec.build() for kind, spec in self.stages.items()}
+        return self.build_batch() if self.is_batch else self.build_segment()
+
+    def build_segment(self) -> PipelineStages:
+        """Fresh stages of a segment pipeline (call once per video).
+
+        Raises:
+            TypeError: this is a batch pipeline.
+        """
         if self.is_batch:
-            return BatchStages(**cast(dict[str, Any], built))
-        return PipelineStages(**cast(dict[str, Any], built))
+            raise TypeError(f"pipeline {self.name!r} is a batch pipeline, not a segment one")
+        return PipelineStages(**self._built())
+
+    def build_batch(self) -> BatchStages:
+        """Fresh stages of a batch pipeline (call once per video).
+
+        Raises:
+            TypeError: this is a segment pipeline.
+        """
+        if not self.is_batch:
+            raise TypeError(f"pipeline {self.name!r} is not a batch pipeline")
+        return BatchStages(**self._built())
+
+    def _built(self) -> dict[str, Any]:
+        # resolve_stage checked each class against its kind's base when it was registered.
+        return cast(dict[str, Any], {kind: spec.build() for kind, spec in self.stages.items()})
 
 
 class YamlTooLargeError(yaml.composer.ComposerError):

@@ -1,9 +1,8 @@
 """The project's docs are the reference its code cites, and they agree with the code.
 
 * Every ``docs/<page>.md#<anchor>`` cited anywhere in the repository (docstrings, comments,
-  Markdown) names a page that exists and a heading of that page. (A citation of a whole page,
-  without an anchor, is not checked outside the Markdown files: code may cite a page that its
-  own change is about to add.)
+  Markdown) names a page that exists and a heading of that page; every ``docs/<page>.md`` cited
+  without an anchor names a page that exists.
 * Every relative Markdown link inside ``docs/`` and README.md points at an existing file and, when
   it has one, an existing heading.
 * Nothing cites the design brief outside the repository (``../shared/docs``): users of the
@@ -38,6 +37,7 @@ SUFFIXES = {".py", ".md", ".yaml", ".yml", ".toml", ".txt", ".cfg"}
 BRIEF_FILES = ("ALGORITHMS" + ".md", "DESIGN" + ".md")
 
 CITATION = re.compile(r"docs/((?:[\w.-]+/)*[\w.-]+\.md)#([\w-]+)")
+PAGE_CITATION = re.compile(r"\bdocs/((?:[\w.-]+/)*[\w.-]+\.md)")
 MARKDOWN_LINK = re.compile(r"\]\(([^)\s]+)\)")
 HEADING = re.compile(r"^(#{1,6})\s+(.+?)\s*#*\s*$")
 PARAMS_MARKER = re.compile(r"<!--\s*params:\s*(\S+)\s*-->")
@@ -112,6 +112,17 @@ def test_cited_docs_anchors_exist() -> None:
                     problems.append(problem)
     assert citations > 0, "no docs anchor citation found: the scan itself is broken"
     assert not problems, "\n".join(problems)
+
+
+def test_cited_docs_pages_exist() -> None:
+    missing = [
+        f"{path.relative_to(ROOT)}:{number}: docs/{match.group(1)} does not exist"
+        for path in _text_files()
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1)
+        for match in PAGE_CITATION.finditer(line)
+        if not (DOCS / match.group(1)).is_file()
+    ]
+    assert not missing, "\n".join(missing)
 
 
 def test_nothing_cites_the_design_brief() -> None:
