@@ -14,51 +14,67 @@ def register(app: typer.Typer) -> None:
     app.command(name="bench")(bench_command)
 
 
+# The options of ``bench_command``, one alias each (typer reads them from the signature).
+PipelinesArgument = Annotated[
+    list[Path], typer.Argument(help="Pipeline YAML files, one table row each.")
+]
+DatasetOption = Annotated[
+    Path, typer.Option("--dataset", "-d", help="Dataset folder (one sub-folder per video).")
+]
+JobsOption = Annotated[
+    int, typer.Option("--jobs", "-j", min=1, help="Jobs at once (worker processes).")
+]
+ExecutorOption = Annotated[
+    str, typer.Option("--executor", help="Where jobs run: local, dask, or a plugin's.")
+]
+AddressOption = Annotated[
+    str | None,
+    typer.Option("--address", help="Scheduler address for --executor dask (tcp://host:8786)."),
+]
+OutOption = Annotated[
+    Path, typer.Option("--out", "-o", help="Output folder (runs, cache, tables).")
+]
+NoCacheOption = Annotated[
+    bool, typer.Option("--no-cache", help="Do not read or write the stage cache.")
+]
+CacheDirOption = Annotated[
+    Path | None,
+    typer.Option("--cache-dir", help="Stage cache folder (default: OUT/cache)."),
+]
+TimeoutOption = Annotated[
+    float | None,
+    typer.Option("--timeout", help="Time limit per job in seconds; a job past it fails."),
+]
+OverridesOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--set",
+        help="Override a value in every pipeline (PATH=VALUE) or in one (NAME:PATH=VALUE).",
+    ),
+]
+DistOption = Annotated[
+    float, typer.Option("--dist", help="CLEAR MOT / IDF1 match threshold in pixels.")
+]
+RetriesOption = Annotated[
+    int, typer.Option("--retries", min=0, help="Retries of a job whose worker was lost.")
+]
+QuietOption = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")]
+
+
 def bench_command(
-    pipelines: Annotated[
-        list[Path], typer.Argument(help="Pipeline YAML files, one table row each.")
-    ],
-    dataset: Annotated[
-        Path, typer.Option("--dataset", "-d", help="Dataset folder (one sub-folder per video).")
-    ],
-    jobs: Annotated[
-        int, typer.Option("--jobs", "-j", min=1, help="Jobs at once (worker processes).")
-    ] = 1,
-    executor: Annotated[
-        str, typer.Option("--executor", help="Where jobs run: local, dask, or a plugin's.")
-    ] = "local",
-    address: Annotated[
-        str | None,
-        typer.Option("--address", help="Scheduler address for --executor dask (tcp://host:8786)."),
-    ] = None,
-    out: Annotated[
-        Path, typer.Option("--out", "-o", help="Output folder (runs, cache, tables).")
-    ] = Path("bench"),
-    no_cache: Annotated[
-        bool, typer.Option("--no-cache", help="Do not read or write the stage cache.")
-    ] = False,
-    cache_dir: Annotated[
-        Path | None,
-        typer.Option("--cache-dir", help="Stage cache folder (default: OUT/cache)."),
-    ] = None,
-    timeout: Annotated[
-        float | None,
-        typer.Option("--timeout", help="Time limit per job in seconds; a job past it fails."),
-    ] = None,
-    overrides: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--set",
-            help="Override a value in every pipeline (PATH=VALUE) or in one (NAME:PATH=VALUE).",
-        ),
-    ] = None,
-    dist: Annotated[
-        float, typer.Option("--dist", help="CLEAR MOT / IDF1 match threshold in pixels.")
-    ] = 40.0,
-    retries: Annotated[
-        int, typer.Option("--retries", min=0, help="Retries of a job whose worker was lost.")
-    ] = 1,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+    pipelines: PipelinesArgument,
+    dataset: DatasetOption,
+    jobs: JobsOption = 1,
+    executor: ExecutorOption = "local",
+    address: AddressOption = None,
+    out: OutOption = Path("bench"),
+    no_cache: NoCacheOption = False,
+    cache_dir: CacheDirOption = None,
+    timeout: TimeoutOption = None,
+    overrides: OverridesOption = None,
+    dist: DistOption = 40.0,
+    retries: RetriesOption = 1,
+    quiet: QuietOption = False,
 ) -> None:
     """Run pipelines over a dataset and write the benchmark table (Markdown, CSV, PNG).
 
@@ -69,7 +85,6 @@ def bench_command(
     from trackfw.cli import get_registry
     from trackfw.errors import UserError
     from trackfw_plugins.bench.executor import ExecutorOptions, make_executor
-    from trackfw_plugins.bench.report import build_table, markdown_table, write_table
     from trackfw_plugins.bench.sweep import plan_sweep
 
     error_console = Console(stderr=True)
@@ -93,6 +108,13 @@ def bench_command(
         ExecutorOptions(jobs=jobs, address=address, retries=retries, registry=registry),
     )
     sweep = _run_with_progress(plan, runner, executor, quiet, error_console)
+    _write_outputs(plan, sweep, out, dist, error_console)
+
+
+def _write_outputs(plan: Any, sweep: Any, out: Path, dist: float, error_console: Any) -> None:
+    """Write the table (Markdown on stdout too) and the sweep's counts; exit 2 when a job failed."""
+    from trackfw_plugins.bench.report import build_table, markdown_table, write_table
+
     rows = build_table(plan, distance_px=dist)
     paths = write_table(rows, out, distance_px=dist)
     typer.echo(markdown_table(rows, distance_px=dist), nl=False)

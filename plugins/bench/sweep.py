@@ -177,6 +177,22 @@ def plan_sweep(
     if use_cache and cache_dir is not None:
         check_output_folder(cache_dir, "--cache-dir")
     per_file = split_overrides(overrides, [Path(path) for path in pipeline_files])
+    planned = _load_pipelines(registry, per_file, out_dir)
+    videos = _load_videos(dataset)
+    for entry in planned:
+        check_videos(entry.pipeline.build(), videos)
+    if use_cache:
+        cache_dir = Path(cache_dir).resolve() if cache_dir is not None else out_dir / CACHE_FOLDER
+    else:
+        cache_dir = None
+    jobs, keys = _list_jobs(registry, planned, videos, cache_dir, timeout_s)
+    return SweepPlan(dataset, out_dir, cache_dir, planned, videos, jobs, keys)
+
+
+def _load_pipelines(
+    registry: Registry, per_file: dict[Path, list[str]], out_dir: Path
+) -> list[PlannedPipeline]:
+    """Each file's pipeline with its overrides, once per configuration; every problem at once."""
     problems: list[str] = []
     planned: list[PlannedPipeline] = []
     seen: set[str] = set()
@@ -192,6 +208,11 @@ def plan_sweep(
             planned.append(entry)
     if problems:
         raise UserError(*problems)
+    return planned
+
+
+def _load_videos(dataset: Path) -> list[VideoContext]:
+    """The dataset's videos, refused when two share a name (their runs would share a folder)."""
     videos = [load_video(path) for path in list_videos(dataset)]
     names = [video.name for video in videos]
     duplicates = sorted({name for name in names if names.count(name) > 1})
@@ -199,12 +220,17 @@ def plan_sweep(
         raise UserError(
             f"{dataset}: several videos are named {', '.join(duplicates)}; expected unique names."
         )
-    for entry in planned:
-        check_videos(entry.pipeline.build(), videos)
-    if use_cache:
-        cache_dir = Path(cache_dir).resolve() if cache_dir is not None else out_dir / CACHE_FOLDER
-    else:
-        cache_dir = None
+    return videos
+
+
+def _list_jobs(
+    registry: Registry,
+    planned: Sequence[PlannedPipeline],
+    videos: Sequence[VideoContext],
+    cache_dir: Path | None,
+    timeout_s: float | None,
+) -> tuple[list[Job], dict[str, str]]:
+    """One job per (pipeline, video), and each job's stage cache key when the cache is used."""
     jobs: list[Job] = []
     keys: dict[str, str] = {}
     for entry in planned:
@@ -223,7 +249,7 @@ def plan_sweep(
             jobs.append(job)
             if cache_dir is not None:
                 keys[job.label] = cache_key(entry.pipeline, video, registry)
-    return SweepPlan(dataset, out_dir, cache_dir, planned, videos, jobs, keys)
+    return jobs, keys
 
 
 def schedule(plan: SweepPlan, pending: Sequence[Job]) -> list[list[Job]]:
