@@ -22,7 +22,13 @@ from rich.table import Table
 
 from trackfw import __version__
 from trackfw.errors import UserError
-from trackfw.registry import Registry, call_command_hooks, load_registry, params_schema
+from trackfw.registry import (
+    Registry,
+    StageEntry,
+    call_command_hooks,
+    load_registry,
+    params_schema,
+)
 
 console = Console()
 error_console = Console(stderr=True)
@@ -126,7 +132,9 @@ def run_command(
     for run, _ in results:
         warning = unread_warning(run)
         if warning is not None:
-            error_console.print(f"warning: {warning}", markup=False, highlight=False, soft_wrap=True)
+            error_console.print(
+                f"warning: {warning}", markup=False, highlight=False, soft_wrap=True
+            )
 
 
 def _target_overrides(region: str | None, targets: Path | None) -> list[str]:
@@ -168,43 +176,53 @@ def plugins_command(
     registry = get_registry()
     entries = sorted(registry.stages.values(), key=lambda e: (e.kind, e.name))
     if as_json:
-        data = {
-            "stages": [
-                {
-                    "kind": e.kind,
-                    "name": e.name,
-                    "package": e.source.package,
-                    "version": e.source.version,
-                    "plugin": e.source.name,
-                    "summary": e.cls.summary(),
-                    "params": [
-                        {"name": n, "type": t, "default": d, "description": s}
-                        for n, t, d, s in params_schema(e.cls.Params)
-                    ],
-                }
-                for e in entries
-            ],
-            "inputs": [
-                {"name": i.name, "description": i.description, "package": i.source.package}
-                for i in registry.inputs.values()
-            ],
-            "failures": [
-                {"plugin": f.source.name, "package": f.source.package, "error": f.error}
-                for f in registry.failures
-            ],
-            "clashes": [
-                {
-                    "kind": c.kind,
-                    "name": c.name,
-                    "package": c.source.package,
-                    "plugin": c.source.name,
-                    "kept": c.kept.package,
-                }
-                for c in registry.clashes
-            ],
-        }
-        console.print_json(json.dumps(data))
+        console.print_json(json.dumps(_plugins_data(registry, entries)))
         return
+    _print_stage_table(registry, entries)
+    _print_load_problems(registry)
+
+
+def _plugins_data(registry: Registry, entries: list[StageEntry]) -> dict[str, Any]:
+    """What ``trackfw plugins --json`` prints."""
+    return {
+        "stages": [
+            {
+                "kind": e.kind,
+                "name": e.name,
+                "package": e.source.package,
+                "version": e.source.version,
+                "plugin": e.source.name,
+                "summary": e.cls.summary(),
+                "params": [
+                    {"name": n, "type": t, "default": d, "description": s}
+                    for n, t, d, s in params_schema(e.cls.Params)
+                ],
+            }
+            for e in entries
+        ],
+        "inputs": [
+            {"name": i.name, "description": i.description, "package": i.source.package}
+            for i in registry.inputs.values()
+        ],
+        "failures": [
+            {"plugin": f.source.name, "package": f.source.package, "error": f.error}
+            for f in registry.failures
+        ],
+        "clashes": [
+            {
+                "kind": c.kind,
+                "name": c.name,
+                "package": c.source.package,
+                "plugin": c.source.name,
+                "kept": c.kept.package,
+            }
+            for c in registry.clashes
+        ],
+    }
+
+
+def _print_stage_table(registry: Registry, entries: list[StageEntry]) -> None:
+    """The stages as a table (parameters and nested stages in one cell), then the inputs."""
     table = Table(title="trackfw stages", show_lines=True)
     for column in ("kind", "name", "package", "parameters"):
         table.add_column(column, overflow="fold")
@@ -220,6 +238,10 @@ def plugins_command(
     console.print(table)
     if registry.inputs:
         console.print("inputs: " + ", ".join(f"builtin:{name}" for name in sorted(registry.inputs)))
+
+
+def _print_load_problems(registry: Registry) -> None:
+    """Plugins that failed to load and names already taken, one line each."""
     if registry.failures:
         console.print("[red]plugins that failed to load:[/red]")
         for failure in registry.failures:

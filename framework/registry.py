@@ -281,8 +281,22 @@ def load_registry(
     manager = pluggy.PluginManager(hookspecs.PROJECT_NAME)
     manager.add_hookspecs(hookspecs)
     registry = Registry(plugin_manager=manager)
-    sources = registry.sources
+    for source, loader in _candidates(extra_modules, use_entry_points):
+        _register_plugin(registry, manager, source, loader)
 
+    for hook_name in (
+        "trackfw_register_stages",
+        "trackfw_register_inputs",
+        "trackfw_register_executors",
+    ):
+        _call_each(manager, hook_name, registry, registry.sources)
+    return registry
+
+
+def _candidates(
+    extra_modules: Iterable[tuple[str, ModuleType]], use_entry_points: bool
+) -> list[tuple[PluginSource, Callable[[], ModuleType]]]:
+    """Each plugin to load, with the call that imports it: entry points by name, then extras."""
     candidates: list[tuple[PluginSource, Callable[[], ModuleType]]] = []
     if use_entry_points:
         for entry_point in sorted(
@@ -296,40 +310,40 @@ def load_registry(
                 functools.partial(_identity, module),
             )
         )
+    return candidates
 
-    for source, loader in candidates:
-        try:
-            module = loader()
-        except KeyboardInterrupt:
-            raise
-        except BaseException as error:  # a broken plugin must never break (nor end) the tool
-            registry.failures.append(PluginFailure(source, f"import failed: {_one_line(error)}"))
-            continue
-        api = getattr(module, "TRACKFW_PLUGIN_API", PLUGIN_API_VERSION)
-        if api != PLUGIN_API_VERSION:
-            registry.failures.append(
-                PluginFailure(
-                    source, f"built for plugin API {api}, this trackfw speaks {PLUGIN_API_VERSION}"
-                )
+
+def _register_plugin(
+    registry: Registry,
+    manager: pluggy.PluginManager,
+    source: PluginSource,
+    loader: Callable[[], ModuleType],
+) -> None:
+    """Import one plugin and register its hooks; a failure is recorded, never raised."""
+    try:
+        module = loader()
+    except KeyboardInterrupt:
+        raise
+    except BaseException as error:  # a broken plugin must never break (nor end) the tool
+        registry.failures.append(PluginFailure(source, f"import failed: {_one_line(error)}"))
+        return
+    api = getattr(module, "TRACKFW_PLUGIN_API", PLUGIN_API_VERSION)
+    if api != PLUGIN_API_VERSION:
+        registry.failures.append(
+            PluginFailure(
+                source, f"built for plugin API {api}, this trackfw speaks {PLUGIN_API_VERSION}"
             )
-            continue
-        plugin_name = f"{source.package}:{source.name}"
-        if manager.is_registered(module) or manager.has_plugin(plugin_name):
-            continue
-        try:
-            manager.register(module, name=plugin_name)
-        except Exception as error:
-            registry.failures.append(PluginFailure(source, f"invalid hooks: {_one_line(error)}"))
-            continue
-        sources[plugin_name] = source
-
-    for hook_name in (
-        "trackfw_register_stages",
-        "trackfw_register_inputs",
-        "trackfw_register_executors",
-    ):
-        _call_each(manager, hook_name, registry, sources)
-    return registry
+        )
+        return
+    plugin_name = f"{source.package}:{source.name}"
+    if manager.is_registered(module) or manager.has_plugin(plugin_name):
+        return
+    try:
+        manager.register(module, name=plugin_name)
+    except Exception as error:
+        registry.failures.append(PluginFailure(source, f"invalid hooks: {_one_line(error)}"))
+        return
+    registry.sources[plugin_name] = source
 
 
 def _in_load_order(
