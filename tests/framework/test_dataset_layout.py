@@ -21,13 +21,18 @@ def _write_mp4(path: Path, n_frames: int) -> None:
     writer.release()
 
 
+def _clip_folder(folder: Path, frames: dict[str, int]) -> Path:
+    """``folder`` with one small MP4 per name (``frames``: name -> frame count)."""
+    folder.mkdir()
+    for name, n_frames in frames.items():
+        _write_mp4(folder / name, n_frames)
+    return folder
+
+
 def test_each_video_file_of_a_folder_is_run_into_its_own_output(
     tmp_path: Path, pixel_pipeline: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    folder = tmp_path / "gopro"
-    folder.mkdir()
-    _write_mp4(folder / "GX010001.MP4", 30)
-    _write_mp4(folder / "GX010002.MP4", 20)
+    folder = _clip_folder(tmp_path / "gopro", {"GX010001.MP4": 30, "GX010002.MP4": 20})
     out = tmp_path / "out"
     code = main(["run", str(pixel_pipeline), "--input", str(folder), "--output", str(out), "-q"])
     assert code == 0, capsys.readouterr().err
@@ -41,13 +46,11 @@ def test_each_video_file_of_a_folder_is_run_into_its_own_output(
 def test_videos_that_would_share_an_output_folder_are_refused(
     tmp_path: Path, pixel_pipeline: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    folder = tmp_path / "clips"
-    folder.mkdir()
-    _write_mp4(folder / "clip.mp4", 5)
-    _write_mp4(folder / "clip.MOV", 5)
-    _write_mp4(folder / "other.mp4", 5)
+    folder = _clip_folder(tmp_path / "clips", {"clip.mp4": 5, "clip.MOV": 5, "other.mp4": 5})
     out = tmp_path / "out"
-    assert main(["run", str(pixel_pipeline), "--input", str(folder), "--output", str(out), "-q"]) == 2
+    assert (
+        main(["run", str(pixel_pipeline), "--input", str(folder), "--output", str(out), "-q"]) == 2
+    )
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and "clip.mp4" in lines[0] and "clip.MOV" in lines[0], lines
     assert not out.exists()

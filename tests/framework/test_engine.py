@@ -113,6 +113,14 @@ def _pixel_plugin() -> ModuleType:
     return module
 
 
+def _pixel_mean_pipeline(pipeline_file) -> tuple[Path, Registry]:
+    """The test pipeline with the ``pixel-mean`` detector, and a registry that has it."""
+    registry = load_registry(extra_modules=[("pixel", _pixel_plugin())])
+    text = pipeline_file().read_text()
+    text = text.replace("detector:    {type: oracle}", "detector:    {type: pixel-mean}")
+    return pipeline_file(text, "pixel.yaml"), registry
+
+
 def test_corrupt_video_tail_is_tracked_up_to_the_corruption(tmp_path: Path, pipeline_file) -> None:
     video_dir = tmp_path / "clip"
     video_dir.mkdir()
@@ -130,13 +138,8 @@ def test_corrupt_video_tail_is_tracked_up_to_the_corruption(tmp_path: Path, pipe
         json.dumps({"n_frames": 60, "width": 64, "height": 48, "fps": 25})
     )
     (video_dir / "gt.csv").write_text("frame,id,x,y\n1,1,32,24\n")
-    registry = load_registry(extra_modules=[("pixel", _pixel_plugin())])
-    path = (
-        pipeline_file()
-        .read_text()
-        .replace("detector:    {type: oracle}", "detector:    {type: pixel-mean}")
-    )
-    run, pipeline = _run(video_dir, pipeline_file(path, "pixel.yaml"), registry=registry)
+    path, registry = _pixel_mean_pipeline(pipeline_file)
+    run, pipeline = _run(video_dir, path, registry=registry)
     statuses = [r.status for r in run.frames]
     assert statuses[0] == "ok" and statuses[-1] == "unread"
     read = statuses.count("ok")
@@ -154,13 +157,8 @@ def test_unreadable_image_in_folder_is_recorded_and_skipped(tmp_path: Path, pipe
         cv2.imwrite(str(video_dir / "img1" / f"{t:06d}.jpg"), np.full((48, 64, 3), 120, np.uint8))
     (video_dir / "img1" / "000005.jpg").write_bytes(b"not a jpeg")
     (video_dir / "gt.csv").write_text("frame,id,x,y\n1,1,32,24\n")
-    registry = load_registry(extra_modules=[("pixel", _pixel_plugin())])
-    path = (
-        pipeline_file()
-        .read_text()
-        .replace("detector:    {type: oracle}", "detector:    {type: pixel-mean}")
-    )
-    run, _ = _run(video_dir, pipeline_file(path, "pixel.yaml"), registry=registry)
+    path, registry = _pixel_mean_pipeline(pipeline_file)
+    run, _ = _run(video_dir, path, registry=registry)
     assert [r.status for r in run.frames].count("unreadable") == 1
     assert run.frames[4].status == "unreadable"
     assert 4 not in {t for t, *_ in run.tracks} and 5 in {t for t, *_ in run.tracks}

@@ -6,6 +6,7 @@ import json
 import struct
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -83,6 +84,16 @@ def truncated_faststart_mp4(path: Path, n_frames: int, keep: int) -> None:
     path.write_bytes(bytes(out[: data_start + sum(sizes[:keep])]))
 
 
+def _run_clip(
+    pipeline: Path, video: Path, out: Path, capsys: pytest.CaptureFixture[str]
+) -> tuple[dict[str, Any], str]:
+    """``trackfw run`` of ``video`` (it must succeed): its summary.json and its stderr."""
+    code = main(["run", str(pipeline), "--input", str(video), "--output", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    return json.loads((out / video.stem / "summary.json").read_text()), err
+
+
 def test_truncated_mp4_says_how_many_frames_could_not_be_read(
     tmp_path: Path, pixel_pipeline: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -91,12 +102,7 @@ def test_truncated_mp4_says_how_many_frames_could_not_be_read(
     capture = cv2.VideoCapture(str(video))
     assert capture.get(cv2.CAP_PROP_FRAME_COUNT) == 120  # the index still promises 120 frames
     capture.release()
-    pipeline = pixel_pipeline
-    out = tmp_path / "out"
-    code = main(["run", str(pipeline), "--input", str(video), "--output", str(out), "--quiet"])
-    err = capsys.readouterr().err
-    assert code == 0, err
-    summary = json.loads((out / "clip" / "summary.json").read_text())
+    summary, err = _run_clip(pixel_pipeline, video, tmp_path / "out", capsys)
     assert summary["frames_ok"] == 40 and summary["frames_unread"] == 80
     assert summary["frames_not_read"] == 80
     warnings = [line for line in err.splitlines() if "could not be read" in line]
@@ -110,11 +116,6 @@ def test_complete_video_has_no_warning(
 ) -> None:
     video = tmp_path / "clip.mp4"
     truncated_faststart_mp4(video, n_frames=30, keep=30)
-    pipeline = pixel_pipeline
-    out = tmp_path / "out"
-    code = main(["run", str(pipeline), "--input", str(video), "--output", str(out), "--quiet"])
-    err = capsys.readouterr().err
-    assert code == 0, err
-    summary = json.loads((out / "clip" / "summary.json").read_text())
+    summary, err = _run_clip(pixel_pipeline, video, tmp_path / "out", capsys)
     assert summary["frames_not_read"] == 0 and summary["warnings"] == []
     assert "could not be read" not in err
