@@ -5,7 +5,9 @@ For each frame: detect, classify, and then either skip it (info-less), step the 
 the gap matcher where the targets are and re-initialise the tracker there. Targets are chosen on
 the start frame as ``engine.init`` says (:mod:`trackfw.targets`: gt.csv, the detections, those
 inside a region, or a targets file) and never created or deleted; nothing is reported before the
-start frame, and a target outside the image is not reported on that frame.
+start frame, and a target outside the image is not reported on that frame, and neither is a
+target the tracker holds as lost, out-of-view or tentative
+(docs/algorithms/segment-tracker.md#target-lifecycle): those take no part in a gap match either.
 
 The pieces: :class:`trackfw.front.FrameFront` yields one observation per frame (live stages or
 a stage-cache replay), :class:`trackfw.segment.Segment` holds the targets between intervals and
@@ -28,7 +30,16 @@ from trackfw.dataset import frame_source_path
 from trackfw.errors import UserError
 from trackfw.front import FrameFront, FrameRecord, Observation
 from trackfw.pipeline import Pipeline
-from trackfw.records import NO_MATCH, GapSolution, Interval, VideoContext
+from trackfw.records import (
+    LOST,
+    NO_MATCH,
+    OUT_OF_VIEW,
+    TARGET_STATES,
+    TRACKED,
+    GapSolution,
+    Interval,
+    VideoContext,
+)
 from trackfw.registry import Registry
 from trackfw.segment import Segment
 from trackfw.stage_cache import CACHED_KINDS, StageCache
@@ -136,13 +147,17 @@ def check_videos(stages: PipelineStages | BatchStages, videos: Sequence[VideoCon
 
 
 def _inside_image(
-    reported: list[tuple[int, FloatArray]], target_ids: np.ndarray, width: int, height: int
+    reported: list[tuple[int, FloatArray, np.ndarray]],
+    target_ids: np.ndarray,
+    width: int,
+    height: int,
 ) -> list[tuple[int, int, float, float]]:
-    """``(t, id, x, y)`` rows for targets inside the image (others are not reported)."""
+    """``(t, id, x, y)`` rows for tracked targets inside the image (others are not reported)."""
     rows: list[tuple[int, int, float, float]] = []
-    for t, positions in reported:
+    for t, positions, tracked in reported:
         inside = (
-            (positions[:, 0] >= 0)
+            tracked
+            & (positions[:, 0] >= 0)
             & (positions[:, 0] < width)
             & (positions[:, 1] >= 0)
             & (positions[:, 1] < height)
@@ -234,7 +249,7 @@ class _OnlineLoop:
         self.start = targets.start_frame(video)
         self.frames: list[FrameRecord] = []
         self.gaps: list[GapRecord] = []
-        self.reported: list[tuple[int, FloatArray]] = []
+        self.reported: list[tuple[int, FloatArray, np.ndarray]] = []
         self.segment: Segment | None = None
         self.initialised_from = ""
         self.interval_open = False
@@ -256,8 +271,12 @@ class _OnlineLoop:
             self.stages.tracker.step(observation.t, observation.detections)
             _time(observation, "tracker", observation.done_at)
         positions = self.stages.tracker.positions()
+        statuses = np.asarray(self.stages.tracker.statuses(), dtype=object)
         self.segment.add(observation, positions)
-        self.reported.append((observation.t, positions))
+        self.reported.append((observation.t, positions, statuses == TRACKED))
+        observation.record.target_states = {
+            state: int(np.count_nonzero(statuses == state)) for state in TARGET_STATES
+        }
 
     def _initialise(self, observation: Observation) -> Segment:
         chosen = self.targets.choose(self.video, observation.t, observation.detections)
@@ -267,16 +286,34 @@ class _OnlineLoop:
         return Segment(chosen.ids)
 
     def _relink(self, segment: Segment, b: Observation) -> Segment:
-        """Solve the gap from the segment's frame ``a`` to ``b``; the new segment starts at b."""
-        problem = segment.gap_problem(b, self.stages.tracker.states(), self.video)
-        solution = self.stages.gap_matcher.match(problem)
+        """Solve the gap from the segment's frame ``a`` to ``b``; the new segment starts at b.
+
+        Lost and out-of-view targets are left out of the gap problem: they come back only
+        through the tracker's re-acquisition. They keep their current position and no match.
+        """
+        tracker = self.stages.tracker
+        states = tracker.states()
+        rows = np.array(
+            [k for k, state in enumerate(states) if state.status not in (LOST, OUT_OF_VIEW)],
+            dtype=np.int64,
+        )
+        problem = segment.gap_problem(b, states, self.video, rows)
+        solution = (
+            self.stages.gap_matcher.match(problem)
+            if len(rows)
+            else GapSolution(np.zeros((0, 2)), np.zeros(0, dtype=np.int64))
+        )
         matched_at = _time(b, "gap_matcher", b.done_at)
-        self.stages.tracker.reinitialise(b.t, solution.positions, solution.matched_detection)
+        positions = tracker.positions()
+        matched = np.full(len(states), NO_MATCH, dtype=np.int64)
+        positions[rows] = solution.positions
+        matched[rows] = solution.matched_detection
+        tracker.reinitialise(b.t, positions, matched)
         _time(b, "tracker", matched_at)
         self.gaps.append(
             GapRecord(
                 problem.interval,
-                _ids(segment.target_ids),
+                _ids(problem.target_ids),
                 solution,
                 b.record.milliseconds["gap_matcher"],
             )

@@ -32,6 +32,9 @@ class FrameRecord:
     infoless: bool | None = None
     detections: Detections | None = None
     milliseconds: dict[str, float] = field(default_factory=dict)
+    #: Targets per lifecycle state after the frame (empty before the targets exist or when
+    #: the frame was not tracked).
+    target_states: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass

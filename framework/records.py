@@ -19,6 +19,17 @@ from trackfw.arrays import BoolArray, FloatArray, IntArray
 #: Marker for "no detection" in integer index arrays.
 NO_MATCH = -1
 
+#: Target lifecycle (docs/algorithms/segment-tracker.md#target-lifecycle): followed and reported.
+TRACKED = "tracked"
+#: No detection supported it for a while; its prediction is kept for re-acquisition, not reported.
+LOST = "lost"
+#: Its predicted position is outside the image; kept for re-acquisition, not reported.
+OUT_OF_VIEW = "out-of-view"
+#: Placed by the gap matcher without a detection at b; reported once a detection confirms it.
+TENTATIVE = "tentative"
+#: Every target state, in the order of the frames.csv count columns.
+TARGET_STATES = (TRACKED, LOST, OUT_OF_VIEW, TENTATIVE)
+
 
 @dataclass(frozen=True)
 class Detections:
@@ -200,6 +211,8 @@ class TargetState:
         covariance: ``(4, 4)`` state covariance of ``(x, y, vx, vy)``, or None.
         matched_detection: stable index of the detection that corrected it on this frame, or
             ``NO_MATCH``.
+        status: its lifecycle state, one of :data:`TARGET_STATES`. A lost or out-of-view target
+            takes no part in a gap match (the engine leaves it out of the problem).
     """
 
     target_id: int
@@ -207,6 +220,7 @@ class TargetState:
     velocity: FloatArray | None = None
     covariance: FloatArray | None = None
     matched_detection: int = NO_MATCH
+    status: str = TRACKED
 
 
 @dataclass

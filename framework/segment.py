@@ -51,7 +51,11 @@ class Segment:
         return Interval(a=self.last.t, b=b)
 
     def gap_problem(
-        self, b: Observation, states: list[TargetState], video: VideoContext
+        self,
+        b: Observation,
+        states: list[TargetState],
+        video: VideoContext,
+        rows: IntArray | None = None,
     ) -> GapProblem:
         """The gap matcher's problem from this segment's frame ``a`` to frame ``b``.
 
@@ -59,15 +63,18 @@ class Segment:
             b: the first informative frame after the interval.
             states: the tracker's state of every target at ``a``.
             video: the video.
+            rows: the targets that take part (indices into ``target_ids``); all when None.
         """
         a = self.last
         if a is None:
             raise ValueError("a gap problem needs a segment with at least one frame")
+        taking_part = np.arange(len(self.target_ids)) if rows is None else np.asarray(rows)
+        histories = self.histories()
         return GapProblem(
             interval=self.interval_to(b.t),
-            target_ids=self.target_ids,
-            histories=self.histories(),
-            states=states,
+            target_ids=self.target_ids[taking_part],
+            histories=[histories[k] for k in taking_part],
+            states=[states[k] for k in taking_part],
             detections=b.detections,
             frame_a=a.image,
             detections_a=a.detections,

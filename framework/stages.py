@@ -232,11 +232,24 @@ class Tracker(Stage[P]):
 
     @abc.abstractmethod
     def reinitialise(self, t: int, positions: FloatArray, matched_detection: IntArray) -> None:
-        """Restart every target at frame ``t`` (= b) from ``(K, 2)`` positions after a gap."""
+        """Restart the targets at frame ``t`` (= b) from ``(K, 2)`` positions after a gap.
+
+        The engine gives every target a row. Lost and out-of-view targets were left out of the
+        gap match: their row holds their current position and ``NO_MATCH``, and a tracker with a
+        lifecycle keeps them as they are (they return only through re-acquisition).
+        """
 
     @abc.abstractmethod
     def states(self) -> list[TargetState]:
         """The current state of every target, in the order of ``initialise``."""
+
+    def statuses(self) -> list[str]:
+        """Every target's lifecycle state (:data:`trackfw.records.TARGET_STATES`), in order.
+
+        The engine reports only ``tracked`` targets. A tracker without a lifecycle keeps the
+        default, every target tracked.
+        """
+        return [state.status for state in self.states()]
 
     def positions(self) -> FloatArray:
         """``(K, 2)`` current positions; override when it can be cheaper than :meth:`states`.

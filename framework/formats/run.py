@@ -9,7 +9,9 @@ A runs folder has one sub-folder per video name, holding (frames are 1-based in 
   each detection's own size;
 * ``frames.csv``: one row per frame, columns :data:`FRAMES_COLUMNS`, ``detection_sizes`` (each
   detection's box ``width height``, in the order of ``detections``; empty when the detector gives
-  no boxes), then ``ms_<stage>`` per stage kind (:func:`frames_header`);
+  no boxes), the targets per lifecycle state (:data:`TARGET_STATE_COLUMNS`: ``n_tracked``,
+  ``n_lost``, ``n_out_of_view``, ``n_tentative``; empty where the frame was not tracked), then
+  ``ms_<stage>`` per stage kind (:func:`frames_header`);
 * ``gaps.json``: one entry per interval (frames a and b, the chosen candidate, matches, positions);
 * ``summary.json``: the pipeline, counts and timings. It is written last, so its presence marks a
   complete run (:func:`check_complete_run`).
@@ -42,6 +44,7 @@ from trackfw.formats.text import (
     read_csv_rows,
     read_json,
 )
+from trackfw.records import TARGET_STATES
 from trackfw.stages import STAGE_KINDS
 
 if TYPE_CHECKING:
@@ -66,11 +69,20 @@ FRAMES_COLUMNS = (
 FRAME_STATUSES = ("ok", "unreadable", "unread")
 #: Optional column (runs written before it lack it): ``width height`` per detection.
 DETECTION_SIZES_COLUMN = "detection_sizes"
+#: Optional columns (runs written before them lack them): targets per lifecycle state, in the
+#: order of :data:`trackfw.records.TARGET_STATES`.
+TARGET_STATE_COLUMNS = tuple(f"n_{state.replace('-', '_')}" for state in TARGET_STATES)
 
 
 def frames_header() -> tuple[str, ...]:
-    """Every column of frames.csv: :data:`FRAMES_COLUMNS`, the detection sizes, the stage times."""
-    return (*FRAMES_COLUMNS, DETECTION_SIZES_COLUMN, *(f"ms_{kind}" for kind in STAGE_KINDS))
+    """Every column of frames.csv: :data:`FRAMES_COLUMNS`, the detection sizes, the target
+    states, the stage times."""
+    return (
+        *FRAMES_COLUMNS,
+        DETECTION_SIZES_COLUMN,
+        *TARGET_STATE_COLUMNS,
+        *(f"ms_{kind}" for kind in STAGE_KINDS),
+    )
 
 
 # --------------------------------------------------------------------------------------- writing
@@ -99,6 +111,7 @@ def _frame_row(record: FrameRecord) -> list[Any]:
         "" if detections is None else len(detections),
         points,
         sizes,
+        *(record.target_states.get(state, "") for state in TARGET_STATES),
         *(
             f"{record.milliseconds[kind]:.3f}" if kind in record.milliseconds else ""
             for kind in STAGE_KINDS

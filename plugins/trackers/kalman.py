@@ -5,7 +5,8 @@ See docs/algorithms/segment-tracker.md#segment-tracker.
 Kalman1 of the paper is ``association: hungarian``, Kalman2 ``association: nearest`` and Kalman3
 ``association: tps-rpm`` (TPS-RPM between all predictions and detections on every frame).
 The filter maths lives in :mod:`trackfw_plugins.maths.kalman`, the association in
-:mod:`trackfw_plugins.maths.assignment`.
+:mod:`trackfw_plugins.maths.assignment`, the targets' states (tracked, lost, out-of-view,
+tentative) and their re-acquisition in :mod:`trackfw_plugins.trackers.lifecycle`.
 """
 
 from __future__ import annotations
@@ -16,12 +17,20 @@ import numpy as np
 from pydantic import Field
 
 from trackfw.arrays import FloatArray, IntArray
-from trackfw.records import NO_MATCH, Detections, TargetState, VideoContext
+from trackfw.records import NO_MATCH, OUT_OF_VIEW, TENTATIVE, Detections, TargetState, VideoContext
 from trackfw.stages import StageParams, Tracker
 from trackfw_plugins.maths.assignment import distance_matrix, greedy_nearest, hungarian
 from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R, KalmanBank
 from trackfw_plugins.maths.tps_rpm import match_points
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
+from trackfw_plugins.trackers.lifecycle import Lifecycle, LifecycleSettings
+
+
+def box_sides(detections: Detections) -> FloatArray:
+    """``(N,)`` square root of each detection's box area; NaN without boxes."""
+    if detections.boxes is None:
+        return np.full(len(detections), np.nan)
+    return np.sqrt(np.abs(detections.boxes[:, 2] * detections.boxes[:, 3]))
 
 
 def _kalman3_rpm() -> TpsRpmSettings:
@@ -51,6 +60,10 @@ class KalmanTrackerParams(StageParams):
         True,
         description="after an interval, restart each filter at its frame-b position with zero velocity and P0",
     )
+    lifecycle: LifecycleSettings = Field(
+        default_factory=LifecycleSettings,
+        description="when a target is lost, confirmed after an interval, or re-acquired",
+    )
 
 
 class KalmanTracker(Tracker[KalmanTrackerParams]):
@@ -60,55 +73,130 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
 
     def start(self, video: VideoContext) -> None:
         params = self.params
+        self.video = video
         self.gate = (
             None
             if params.gate_px_at_1080 is None
             else params.gate_px_at_1080 * video.height / 1080.0
         )
-        self.bank = KalmanBank.start(np.zeros((0, 2)), params.P0, params.Q, params.R)
-        self.target_ids = np.zeros(0, dtype=np.int64)
-        self.matched = np.zeros(0, dtype=np.int64)
+        self.initialise(0, np.zeros(0, dtype=np.int64), np.zeros((0, 2)))
 
     def initialise(self, t: int, target_ids: IntArray, positions: FloatArray) -> None:
         params = self.params
+        positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         self.target_ids = np.asarray(target_ids, dtype=np.int64)
         self.bank = KalmanBank.start(positions, params.P0, params.Q, params.R)
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
+        self.life = Lifecycle.start(params.lifecycle, self.video, t, positions)
 
-    def associate(self, predicted: FloatArray, detections: Detections) -> IntArray:
-        """Row of ``detections`` for each predicted target, ``-1`` when none (gated)."""
+    def associate(
+        self, predicted: FloatArray, detections: Detections, rows: IntArray | None = None
+    ) -> IntArray:
+        """Row of ``detections`` for each predicted target, ``-1`` when none (gated).
+
+        ``rows`` are the targets' rows (all when None); a detection whose box size does not fit
+        the target's (``lifecycle.size_ratio_max``) is never its match.
+        """
+        if len(predicted) == 0 or len(detections) == 0:
+            return np.full(len(predicted), NO_MATCH, dtype=np.int64)
+        targets = np.arange(len(predicted)) if rows is None else rows
+        mismatch = self.life.size_mismatch(targets, box_sides(detections))
         if self.params.association == "tps-rpm":
-            rows, _, _ = match_points(predicted, detections.points, self.params.rpm)
-            return rows
+            matched, _, _ = match_points(predicted, detections.points, self.params.rpm)
+            refused = np.flatnonzero(matched >= 0)
+            refused = refused[mismatch[refused, matched[refused]]]
+            matched[refused] = NO_MATCH
+            return matched
         cost = distance_matrix(predicted, detections.points)
+        cost[mismatch] = np.inf
         if self.params.association == "nearest":
             return greedy_nearest(cost, self.gate)
         return hungarian(cost, self.gate)
 
     def step(self, t: int, detections: Detections) -> None:
+        """Predict, associate the tracked and tentative targets, re-acquire the others."""
         self.bank.predict()
-        rows = self.associate(self.bank.positions, detections) if len(detections) else None
+        life = self.life
+        active, inactive = life.active(), life.inactive()
+        rows = self.associate(self.bank.positions[active], detections, active)
+        hit = rows >= 0
+        targets = active[hit]
+        self.bank.correct(targets, detections.points[rows[hit]])
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
-        if rows is None:
-            return
-        targets = np.flatnonzero(rows >= 0)
-        self.bank.correct(targets, detections.points[rows[targets]])
-        self.matched[targets] = detections.index[rows[targets]]
+        self.matched[targets] = detections.index[rows[hit]]
+        sides = box_sides(detections)
+        life.supported(t, targets, self.bank.positions[targets], sides[rows[hit]])
+        life.unsupported(t, active[~hit], self.bank.positions[active[~hit]])
+        found, columns = self._reacquire(t, detections, inactive, targets, rows[hit])
+        life.supported(t, found, self.bank.positions[found], sides[columns])
+
+    def _reacquire(
+        self, t: int, detections: Detections, inactive: IntArray, anchors: IntArray, taken: IntArray
+    ) -> tuple[IntArray, IntArray]:
+        """Re-find lost and out-of-view targets on the detections left over.
+
+        Returns the rows found and the detection (row of ``detections``) of each.
+
+        docs/algorithms/segment-tracker.md#re-acquisition
+        """
+        if len(inactive) == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        life = self.life
+        expected = life.expected(inactive, self.bank.positions, anchors)
+        free = np.setdiff1d(np.arange(len(detections)), taken)
+        columns = life.reacquire(
+            t, expected, inactive, detections.points[free], box_sides(detections)[free]
+        )
+        hit = columns >= 0
+        found, chosen = inactive[hit], free[columns[hit]]
+        self._restart(found, detections.points[chosen])
+        self.matched[found] = detections.index[chosen]
+        # A target not found waits at its expected place, still: its own velocity was measured
+        # before it vanished and would carry it away from the group.
+        waiting = inactive[~hit]
+        self.bank.means[waiting, :2] = expected[~hit]
+        self.bank.means[waiting, 2:] = 0.0
+        life.place(t, waiting, expected[~hit])
+        return found, chosen
+
+    def _restart(self, rows: IntArray, positions: FloatArray) -> None:
+        """Restart the filters ``rows`` at ``(M, 2)`` positions with zero velocity and P0."""
+        fresh = KalmanBank.start(positions, self.params.P0, self.params.Q, self.params.R)
+        self.bank.means[rows] = fresh.means
+        self.bank.covariances[rows] = fresh.covariances
 
     def reinitialise(self, t: int, positions: FloatArray, matched_detection: IntArray) -> None:
-        params = self.params
+        """Restart the tracked and tentative targets at b; unmatched ones become tentative.
+
+        Lost and out-of-view targets were left out of the gap match and stay as they are.
+        """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
-        if params.reinit_at_b:
+        matched_detection = np.asarray(matched_detection, dtype=np.int64)
+        active = self.life.active()
+        if self.params.reinit_at_b:
             # The old velocity belongs to the pre-interval camera pose
             # (docs/algorithms/segment-tracker.md#re-initialisation-at-b).
-            self.bank = KalmanBank.start(positions, params.P0, params.Q, params.R)
+            self._restart(active, positions[active])
         else:
             self.bank.predict()
-            self.bank.means[:, :2] = positions
-        self.matched = np.asarray(matched_detection, dtype=np.int64).copy()
+            self.bank.means[active, :2] = positions[active]
+        self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
+        self.matched[active] = matched_detection[active]
+        placed = active[matched_detection[active] == NO_MATCH]
+        outside = ~self.life.inside(positions[placed])
+        self.life.set(placed[outside], OUT_OF_VIEW, t)
+        self.life.set(placed[~outside], TENTATIVE, t)
+        self.life.since[placed[~outside]] = t  # the confirmation clock starts at b
+        supported = active[matched_detection[active] != NO_MATCH]
+        # The detection's size at b is unknown here (the gap matcher returns stable indices);
+        # the size from before the interval is kept.
+        self.life.supported(t, supported, positions[supported], np.full(len(supported), np.nan))
 
     def positions(self) -> FloatArray:
         return self.bank.means[:, :2].copy()
+
+    def statuses(self) -> list[str]:
+        return [str(status) for status in self.life.status]
 
     def states(self) -> list[TargetState]:
         means, covariances = self.bank.means, self.bank.covariances
@@ -119,6 +207,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
                 velocity=means[row, 2:].copy(),
                 covariance=covariances[row],
                 matched_detection=int(self.matched[row]),
+                status=str(self.life.status[row]),
             )
             for row, target_id in enumerate(self.target_ids)
         ]

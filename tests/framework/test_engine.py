@@ -71,11 +71,19 @@ def test_fewer_and_zero_detections(points_video, pipeline_file) -> None:
     video = points_video(n_frames=80, intervals=[(30, 40)])
     run, _ = _run(video, pipeline_file(), ["stages.detector.params.miss_rate=0.5"])
     assert any(len(r.detections) < 8 for r in run.frames if r.detections is not None)
-    run, _ = _run(video, pipeline_file(), ["stages.detector.params.miss_rate=1.0"])
+    coast = "stages.tracker.params.lifecycle.lost_after_s=2.0"
+    run, _ = _run(video, pipeline_file(), ["stages.detector.params.miss_rate=1.0", coast])
     assert all(len(r.detections) == 0 for r in run.frames if r.detections is not None)
-    # Targets still reported (predicted) on every normal frame, and the gap resolved without detections.
+    # Without detections the targets coast (lifecycle.lost_after_s set to 2 s, longer than the 29
+    # frames before the interval), are placed at b without a detection, so only tentatively
+    # (not reported), and are lost once nothing confirms them.
+    assert load_video(video).fps >= 29
+    assert {t for t, *_ in run.tracks} == set(range(29))
     assert run.gaps[0].resolved and all(d is None for d in run.gaps[0].matched_detection)
-    assert len({t for t, *_ in run.tracks}) == 80 - 11
+    states = [r.target_states for r in run.frames if not r.infoless]
+    assert states[0] == {"tracked": 8, "lost": 0, "out-of-view": 0, "tentative": 0}
+    assert states[29] == {"tracked": 0, "lost": 0, "out-of-view": 0, "tentative": 8}
+    assert states[-1] == {"tracked": 0, "lost": 8, "out-of-view": 0, "tentative": 0}
 
 
 def test_targets_outside_the_image_are_not_reported(tmp_path: Path, pipeline_file) -> None:

@@ -74,7 +74,10 @@ def _run_folder(folder: Path) -> Path:
 def test_the_header_is_defined_once() -> None:
     # HEADER (used above) is the layout of runs written before detection sizes were recorded;
     # those runs stay readable.
-    with_sizes = HEADER.replace(",detections,", ",detections,detection_sizes,")
+    with_sizes = HEADER.replace(
+        ",detections,",
+        ",detections,detection_sizes,n_tracked,n_lost,n_out_of_view,n_tentative,",
+    )
     assert ",".join(frames_header()) == with_sizes
     assert frames_header()[: len(FRAMES_COLUMNS)] == FRAMES_COLUMNS
 
@@ -83,8 +86,8 @@ def test_detection_sizes_are_read_per_detection(tmp_path: Path) -> None:
     path = tmp_path / "frames.csv"
     path.write_text(
         ",".join(frames_header()) + "\n"
-        "1,ok,0.1,0,2,10 20;30 40,12.0 14.0;8 8,1,1,1,0\n"
-        "2,ok,0.1,0,1,10 20,,1,1,1,0\n",
+        "1,ok,0.1,0,2,10 20;30 40,12.0 14.0;8 8,6,0,0,0,1,1,1,0\n"
+        "2,ok,0.1,0,1,10 20,,6,0,0,0,1,1,1,0\n",
         encoding="utf-8",
     )
     records = read_frames_csv(path)
@@ -99,7 +102,7 @@ def test_detection_sizes_are_read_per_detection(tmp_path: Path) -> None:
 def test_malformed_detection_sizes(tmp_path: Path, sizes: str, message: str) -> None:
     path = tmp_path / "frames.csv"
     path.write_text(
-        ",".join(frames_header()) + f"\n1,ok,0.1,0,2,10 20;30 40,{sizes},1,1,1,0\n",
+        ",".join(frames_header()) + f"\n1,ok,0.1,0,2,10 20;30 40,{sizes},6,0,0,0,1,1,1,0\n",
         encoding="utf-8",
     )
     with pytest.raises(UserError) as error:

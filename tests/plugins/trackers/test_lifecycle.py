@@ -1,0 +1,147 @@
+"""Target lifecycle of the kalman tracker: every state change, and re-acquisition after a gap."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from trackfw.records import Detections, VideoContext
+from trackfw.registry import load_registry
+
+# 25 fps, 720p: the association gate is 33.3 px, lost_after 1.0 s = 25 frames.
+VIDEO = VideoContext(name="v", path="v", n_frames=500, width=1280, height=720, fps=25.0)
+GROUP = np.array([[400.0, 300.0], [460.0, 310.0], [520.0, 300.0]])
+
+
+def _tracker(**lifecycle: Any) -> Any:
+    params = {"lifecycle": lifecycle} if lifecycle else {}
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([1, 2, 3]), GROUP)
+    return tracker
+
+
+def _seen(points: np.ndarray, sizes: list[float] | None = None) -> Detections:
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    sides = np.full(len(points), 30.0) if sizes is None else np.asarray(sizes)
+    boxes = np.column_stack([points - sides[:, None] / 2, sides, sides])
+    return Detections.from_points(points, boxes=boxes)
+
+
+def test_tracked_then_lost_after_the_set_time_and_not_before() -> None:
+    tracker = _tracker(lost_after_s=1.0)
+    for t in range(1, 26):  # 25 frames = 1.0 s without target 2
+        tracker.step(t, _seen(GROUP[[0, 2]]))
+    assert tracker.statuses() == ["tracked", "tracked", "tracked"]
+    tracker.step(26, _seen(GROUP[[0, 2]]))
+    assert tracker.statuses() == ["tracked", "lost", "tracked"]
+    assert tracker.states()[1].status == "lost"
+
+
+def test_lost_target_is_reacquired_with_its_old_id_where_the_group_says() -> None:
+    # Target 2 vanishes for 3 s while the camera pans: the whole group drifts 120 px right.
+    # It comes back where its offset to the group puts it, 120 px from where it was last
+    # seen; a bystander of another head size stands exactly where it vanished.
+    tracker = _tracker(lost_after_s=0.2)
+    pan = np.array([1.6, 0.0])  # px per frame
+    for t in range(1, 76):
+        tracker.step(t, _seen(GROUP[[0, 2]] + pan * t))
+    assert tracker.statuses()[1] == "lost"
+    back = GROUP + pan * 76
+    bystander = GROUP[1]
+    tracker.step(76, _seen(np.vstack([back, bystander]), [30.0, 30.0, 30.0, 60.0]))
+    states = tracker.states()
+    assert [s.status for s in states] == ["tracked"] * 3
+    assert states[1].target_id == 2 and states[1].matched_detection == 1
+    assert np.allclose(states[1].position, back[1], atol=1.0)
+
+
+def test_without_neighbours_the_gate_grows_with_time_lost() -> None:
+    # Alone, a lost target waits where it was last seen. 55 px away is beyond the first
+    # re-acquisition gate (60 px at 1080p = 40 px at 720p) and the tracker's 33 px gate, and
+    # within it after 1 s (+ 30 px at 720p).
+    lifecycle = {
+        "lost_after_s": 0.1,
+        "reacquire_gate_px_at_1080": 60.0,
+        "reacquire_growth_px_per_s_at_1080": 45.0,
+        "reacquire_max_px_at_1080": 300.0,
+    }
+    tracker = load_registry().build_stage(
+        "tracker", {"type": "kalman", "params": {"lifecycle": lifecycle}}
+    )
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([7]), np.array([[600.0, 300.0]]))
+    far = _seen([[655.0, 300.0]])
+    for t in range(1, 5):
+        tracker.step(t, Detections.empty())
+    tracker.step(5, far)
+    assert tracker.statuses() == ["lost"]
+    for t in range(6, 30):
+        tracker.step(t, Detections.empty())
+    tracker.step(30, far)
+    assert tracker.statuses() == ["tracked"]
+    assert tracker.states()[0].target_id == 7
+
+
+def test_out_of_view_then_tracked_again() -> None:
+    tracker = load_registry().build_stage("tracker", {"type": "kalman"})
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([1, 2]), np.array([[1200.0, 300.0], [600.0, 300.0]]))
+    x = 1200.0
+    t = 0
+    while x < 1279:  # target 1 walks right, 8 px per frame, to the edge
+        t, x = t + 1, x + 8.0
+        tracker.step(t, _seen([[x, 300.0], [600.0, 300.0]]) if x < 1280 else _seen([[600, 300]]))
+    for _ in range(3):  # then it is gone; its prediction leaves the image
+        t += 1
+        tracker.step(t, _seen([[600.0, 300.0]]))
+    assert tracker.statuses() == ["out-of-view", "tracked"]
+    for _ in range(20):
+        t += 1
+        tracker.step(t, _seen([[600.0, 300.0]]))
+    assert tracker.statuses() == ["out-of-view", "tracked"]
+    # It walks back in where it left (the neighbour has not moved).
+    t += 1
+    tracker.step(t, _seen([[1270.0, 300.0], [600.0, 300.0]]))
+    assert tracker.statuses() == ["tracked", "tracked"]
+    assert tracker.states()[0].matched_detection == 0
+
+
+def test_tentative_confirmed_by_a_detection() -> None:
+    tracker = _tracker(confirm_within_s=0.5)
+    tracker.reinitialise(10, GROUP + 50.0, np.array([0, -1, 2]))
+    assert tracker.statuses() == ["tracked", "tentative", "tracked"]
+    for t in range(11, 16):
+        tracker.step(t, _seen((GROUP + 50.0)[[0, 2]]))
+    assert tracker.statuses()[1] == "tentative"
+    tracker.step(16, _seen(GROUP + 50.0))
+    assert tracker.statuses() == ["tracked"] * 3
+
+
+def test_tentative_lost_when_nothing_confirms_it() -> None:
+    tracker = _tracker(confirm_within_s=0.5)
+    tracker.reinitialise(10, GROUP + 50.0, np.array([0, -1, 2]))
+    for t in range(11, 23):  # 12 frames = 0.48 s
+        tracker.step(t, _seen((GROUP + 50.0)[[0, 2]]))
+    assert tracker.statuses()[1] == "tentative"
+    tracker.step(23, _seen((GROUP + 50.0)[[0, 2]]))
+    assert tracker.statuses()[1] == "lost"
+
+
+def test_lost_targets_stay_lost_through_a_reinitialisation() -> None:
+    tracker = _tracker(lost_after_s=0.2)
+    for t in range(1, 10):
+        tracker.step(t, _seen(GROUP[[0, 2]]))
+    assert tracker.statuses()[1] == "lost"
+    before = tracker.positions()[1].copy()
+    tracker.reinitialise(20, GROUP + 200.0, np.array([0, -1, 1]))
+    assert tracker.statuses() == ["tracked", "lost", "tracked"]
+    assert np.allclose(tracker.positions()[1], before)
+
+
+def test_a_bystander_of_another_head_size_is_not_taken() -> None:
+    tracker = _tracker()
+    tracker.step(1, _seen(GROUP, [30.0, 30.0, 30.0]))
+    tracker.step(2, _seen(GROUP, [30.0, 80.0, 30.0]))
+    assert [s.matched_detection for s in tracker.states()] == [0, -1, 2]
