@@ -308,7 +308,7 @@ class _OnlineLoop:
         matched = np.full(len(states), NO_MATCH, dtype=np.int64)
         positions[rows] = solution.positions
         matched[rows] = solution.matched_detection
-        tracker.reinitialise(b.t, positions, matched)
+        tracker.reinitialise(b.t, positions, matched, b.detections)
         _time(b, "tracker", matched_at)
         self.gaps.append(
             GapRecord(

@@ -231,8 +231,17 @@ class Tracker(Stage[P]):
         """Advance one frame: predict, associate with ``detections``, correct."""
 
     @abc.abstractmethod
-    def reinitialise(self, t: int, positions: FloatArray, matched_detection: IntArray) -> None:
+    def reinitialise(
+        self,
+        t: int,
+        positions: FloatArray,
+        matched_detection: IntArray,
+        detections: Detections | None = None,
+    ) -> None:
         """Restart the targets at frame ``t`` (= b) from ``(K, 2)`` positions after a gap.
+
+        ``detections`` are frame b's (the ``matched_detection`` indices are their stable
+        indices), given so that a tracker may check the gap matcher's matches.
 
         The engine gives every target a row. Lost and out-of-view targets were left out of the
         gap match: their row holds their current position and ``NO_MATCH``, and a tracker with a

@@ -165,13 +165,20 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.bank.means[rows] = fresh.means
         self.bank.covariances[rows] = fresh.covariances
 
-    def reinitialise(self, t: int, positions: FloatArray, matched_detection: IntArray) -> None:
+    def reinitialise(
+        self,
+        t: int,
+        positions: FloatArray,
+        matched_detection: IntArray,
+        detections: Detections | None = None,
+    ) -> None:
         """Restart the tracked and tentative targets at b; unmatched ones become tentative.
 
-        Lost and out-of-view targets were left out of the gap match and stay as they are.
+        Lost and out-of-view targets were left out of the gap match and stay as they are. A
+        match to a head of another size (``lifecycle.size_ratio_max``) counts as no match.
         """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
-        matched_detection = np.asarray(matched_detection, dtype=np.int64)
+        matched = np.asarray(matched_detection, dtype=np.int64).copy()
         active = self.life.active()
         if self.params.reinit_at_b:
             # The old velocity belongs to the pre-interval camera pose
@@ -180,17 +187,32 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         else:
             self.bank.predict()
             self.bank.means[active, :2] = positions[active]
+        sides = self._matched_sides(matched, detections)
+        mismatch = self.life.size_mismatch(np.arange(len(matched)), sides)
+        matched[np.diagonal(mismatch)] = NO_MATCH
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
-        self.matched[active] = matched_detection[active]
-        placed = active[matched_detection[active] == NO_MATCH]
+        self.matched[active] = matched[active]
+        placed = active[matched[active] == NO_MATCH]
         outside = ~self.life.inside(positions[placed])
         self.life.set(placed[outside], OUT_OF_VIEW, t)
         self.life.set(placed[~outside], TENTATIVE, t)
         self.life.since[placed[~outside]] = t  # the confirmation clock starts at b
-        supported = active[matched_detection[active] != NO_MATCH]
-        # The detection's size at b is unknown here (the gap matcher returns stable indices);
-        # the size from before the interval is kept.
-        self.life.supported(t, supported, positions[supported], np.full(len(supported), np.nan))
+        supported = active[matched[active] != NO_MATCH]
+        self.life.supported(t, supported, positions[supported], sides[supported])
+
+    @staticmethod
+    def _matched_sides(matched: IntArray, detections: Detections | None) -> FloatArray:
+        """``(K,)`` box side of each target's matched detection at b (NaN when none/unknown)."""
+        sides = np.full(len(matched), np.nan)
+        if detections is None or len(detections) == 0:
+            return sides
+        lookup = {int(index): row for row, index in enumerate(detections.index)}
+        all_sides = box_sides(detections)
+        for k, index in enumerate(matched):
+            row = lookup.get(int(index))
+            if row is not None:
+                sides[k] = all_sides[row]
+        return sides
 
     def positions(self) -> FloatArray:
         return self.bank.means[:, :2].copy()
