@@ -5,7 +5,7 @@ Targets (issue 21), one core: dpnms >= 2000 frames/s, gtcsa >= 200 frames/s, smo
 total frames / total seconds, and seconds per 1000 frames.
 
     trackfw dataset synth --preset paper --seed 5 --out /tmp/synth
-    python benchmarks/batch_tracker_speed.py /tmp/synth [--trackers dpnms gtcsa smot] [--videos N]
+    python benchmarks/batch_tracker_speed.py /tmp/synth [--trackers dpnms gtcsa smot cem] [--videos N]
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import numpy as np
 from trackfw.dataset import list_videos, load_video
 from trackfw.records import VideoContext
 from trackfw_plugins.batch_trackers.bytetrack import track_bytetrack
+from trackfw_plugins.batch_trackers.cem import track_cem
 from trackfw_plugins.batch_trackers.dpnms import track_dpnms
 from trackfw_plugins.batch_trackers.gtcsa import track_gtcsa
 from trackfw_plugins.batch_trackers.smot import track_smot
@@ -32,6 +33,7 @@ TRACKERS: dict[str, Callable[[VideoDetections, VideoContext], Tracks]] = {
     "bytetrack": lambda detections, video: track_bytetrack(detections, video.fps),
     "gtcsa": lambda detections, video: track_gtcsa(detections, video.height),
     "smot": lambda detections, video: track_smot(detections),
+    "cem": lambda detections, video: track_cem(detections, video.width, video.height),
 }
 
 

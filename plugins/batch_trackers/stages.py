@@ -19,6 +19,7 @@ from pydantic import ConfigDict, Field
 from trackfw.records import Detections, Tracks, VideoContext
 from trackfw.stages import BatchTracker, StageParams
 from trackfw_plugins.batch_trackers.bytetrack import ByteTrackParams, track_bytetrack
+from trackfw_plugins.batch_trackers.cem import CemParams, track_cem
 from trackfw_plugins.batch_trackers.dpnms import DpnmsParams, track_dpnms
 from trackfw_plugins.batch_trackers.gtcsa import GtcsaParams, track_gtcsa
 from trackfw_plugins.batch_trackers.smot import SmotParams, track_smot
@@ -75,6 +76,10 @@ class SmotStageParams(BatchInputParams, SmotParams):
     """SMOT settings and its input (boxes and scores are not used)."""
 
 
+class CemStageParams(BatchInputParams, CemParams):
+    """CEM settings and its input (DPNMS, its start, uses the boxes; the energy the scores)."""
+
+
 class GtcsaStageParams(BatchInputParams, GtcsaParams):
     """GTCSA-like settings and its input (boxes and scores are not used)."""
 
@@ -110,6 +115,17 @@ class SmotTracker(BatchTracker[SmotStageParams]):
             return track_smot(video_detections(detections, video, self.params), self.params)
 
 
+class CemTracker(BatchTracker[CemStageParams]):
+    """CEM: continuous energy minimisation with jump moves, started from DPNMS (Milan 2014)."""
+
+    name = "cem"
+
+    def track(self, detections: Sequence[Detections], video: VideoContext) -> Tracks:
+        table = video_detections(detections, video, self.params)
+        with single_threaded_blas():
+            return track_cem(table, video.width, video.height, self.params)
+
+
 class GtcsaTracker(BatchTracker[GtcsaStageParams]):
     """GTCSA-like groupwise tracking: k-means groups, TPS-RPM within groups (our approximation)."""
 
@@ -125,5 +141,6 @@ BATCH_TRACKERS: tuple[type[BatchTracker[StageParams]], ...] = (  # type: ignore[
     DpnmsTracker,
     ByteTrackTracker,
     SmotTracker,
+    CemTracker,
     GtcsaTracker,
 )

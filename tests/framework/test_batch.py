@@ -82,7 +82,7 @@ def _registry() -> Registry:
 
 
 def test_the_built_in_batch_trackers_are_registered() -> None:
-    assert load_registry().names("batch_tracker") == ["bytetrack", "dpnms", "gtcsa", "smot"]
+    assert load_registry().names("batch_tracker") == ["bytetrack", "cem", "dpnms", "gtcsa", "smot"]
 
 
 @pytest.mark.parametrize(
@@ -180,7 +180,7 @@ def test_a_batch_run_replays_its_detections_from_the_stage_cache(
     assert second.tracks == first.tracks
 
 
-@pytest.mark.parametrize("name", ["dpnms", "bytetrack", "gtcsa", "smot"])
+@pytest.mark.parametrize("name", ["dpnms", "bytetrack", "cem", "gtcsa", "smot"])
 def test_each_batch_tracker_runs_in_a_pipeline(name: str, points_video, pipeline_file) -> None:
     video_dir = points_video(n_frames=50, intervals=[(20, 25)])
     text = BATCH.replace("{type: recorder}", f"{{type: {name}}}")

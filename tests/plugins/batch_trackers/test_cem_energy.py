@@ -10,6 +10,7 @@ import pytest
 from trackfw_plugins.batch_trackers.cem_energy import (
     EnergyWeights,
     Scene,
+    cross_exclusion_energy,
     detection_energy,
     dynamics_energy,
     exclusion_energy,
@@ -54,7 +55,15 @@ TERMS: dict[str, Callable[[np.ndarray, np.ndarray, Scene], tuple[float, np.ndarr
     "exclusion": lambda p, a, s: exclusion_energy(p, a, s.target_size),
     "persistence": lambda p, a, s: persistence_energy(p, a, s),
     "total": lambda p, a, s: total_energy(p, a, s, EnergyWeights()),
+    # Targets 0 and 1 move, 2 and 3 are held still (the descent after a jump move).
+    "cross-exclusion": lambda p, a, s: _cross(p, a, s),
 }
+
+
+def _cross(positions: np.ndarray, alive: np.ndarray, scene: Scene) -> tuple[float, np.ndarray]:
+    fixed = (positions[:, 2:].copy(), alive[:, 2:])
+    energy, gradient = cross_exclusion_energy(positions[:, :2], alive[:, :2], fixed, 21.0)
+    return energy, np.concatenate([gradient, np.zeros_like(positions[:, 2:])], axis=1)
 
 
 @pytest.mark.parametrize("term", sorted(TERMS))
@@ -62,11 +71,20 @@ def test_every_gradient_matches_finite_differences(term: str) -> None:
     positions, alive, scene = _state()
     function = TERMS[term]
     _, analytic = function(positions, alive, scene)
-    numeric = _numeric(lambda p: function(p, alive, scene)[0], positions, alive)
+    moving = alive.copy()
+    if term == "cross-exclusion":
+        moving[:, 2:] = False
+        frozen = positions.copy()
+        function = lambda p, a, s: _cross(np.concatenate([p[:, :2], frozen[:, 2:]], 1), a, s)  # noqa: E731
+    numeric = _numeric(lambda p: function(p, alive, scene)[0], positions, moving)
     scale = max(np.abs(numeric).max(), 1e-8)
     assert np.abs(analytic - numeric).max() / scale < 1e-5
     # The gradient is zero where a target does not live (except the pure per-frame terms).
-    assert np.abs(analytic[~alive]).max() == 0.0 or term in ("dynamics", "exclusion")
+    assert np.abs(analytic[~alive]).max() == 0.0 or term in (
+        "dynamics",
+        "exclusion",
+        "cross-exclusion",
+    )
     assert np.abs(numeric).max() > 0.0
 
 
