@@ -38,7 +38,7 @@ class DpnmsParams(StageParams):
     birth_cost: float = Field(10.0, ge=0.0, description="c_en: cost of starting a track")
     death_cost: float = Field(10.0, ge=0.0, description="c_ex: cost of ending a track")
     link_cost: float = Field(0.0, ge=0.0, description="c_ij: cost of each frame-to-frame link")
-    betta: float = Field(0.2, description="detection cost c_i = betta - score_i")
+    betta: float = Field(0.2, ge=0.0, description="detection cost c_i = betta - score_i")
     stop_cost: float = Field(
         18.0, description="thr_cost: stop when the cheapest remaining track costs this or more"
     )
