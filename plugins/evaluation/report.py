@@ -95,7 +95,7 @@ class VideoEvaluation:
     n_intervals: int
     identity: IdentityCounts
     hota: HotaCounts
-    infoless: InfolessCounts
+    infoless: InfolessCounts | None
     frames_not_evaluated: int
     gt_points_in_intervals: int
     detection: DetectionCounts | None = None
@@ -114,7 +114,7 @@ def _metrics_row(
     clear_in: ClearMotCounts | None,
     identity: IdentityCounts,
     hota: HotaCounts,
-    infoless: InfolessCounts,
+    infoless: InfolessCounts | None,
     detection: DetectionCounts | None,
     sensitivity: dict[float, tuple[ClearMotCounts, ClearMotCounts | None]],
     with_detection: bool,
@@ -143,10 +143,11 @@ def _metrics_row(
         "PT": float(clear.partially_tracked),
         "ML": float(clear.mostly_lost),
         "FM": float(clear.n_fragmentations),
-        "IL-Precision": _percent(infoless.precision),
-        "IL-Recall": _percent(infoless.recall),
-        "IL-F1": _percent(infoless.f1),
-        "IL-Misclassified": float(infoless.misclassified),
+        # A run without a classifier labels no frame: its info-less scores are undefined, not 0.
+        "IL-Precision": _percent(infoless.precision) if infoless is not None else nan,
+        "IL-Recall": _percent(infoless.recall) if infoless is not None else nan,
+        "IL-F1": _percent(infoless.f1) if infoless is not None else nan,
+        "IL-Misclassified": float(infoless.misclassified) if infoless is not None else nan,
     }
     if with_detection:
         row["Det-Precision"] = _percent(detection.precision) if detection is not None else nan
@@ -206,7 +207,7 @@ class DatasetEvaluation:
         """Metrics of the summed counts of all videos."""
         clear = ClearMotCounts()
         identity = IdentityCounts()
-        infoless = InfolessCounts()
+        infoless: InfolessCounts | None = None
         clear_in: ClearMotCounts | None = None
         detection: DetectionCounts | None = None
         hota: HotaCounts | None = None
@@ -214,7 +215,8 @@ class DatasetEvaluation:
         for video in self.videos:
             clear = clear + video.clear
             identity = identity + video.identity
-            infoless = infoless + video.infoless
+            if video.infoless is not None:
+                infoless = video.infoless if infoless is None else infoless + video.infoless
             hota = video.hota if hota is None else hota + video.hota
             if video.clear_in is not None:
                 clear_in = video.clear_in if clear_in is None else clear_in + video.clear_in
@@ -300,6 +302,9 @@ def evaluate_video(
     ok = run.frames.ok
     evaluated_frames = run.frames.frames[ok]
     truth = infoless_truth(intervals, evaluated_frames)
+    # A classifier gives every frame it saw a probability; a run without one (a batch tracker's)
+    # leaves the column empty, and its info-less labels are no decisions.
+    classified = bool(np.isfinite(run.frames.infoless_probability[ok]).any())
     detection: DetectionCounts | None = None
     if settings.detections and video.ground_truth.heads:
         detection = DetectionCounts()
@@ -319,7 +324,7 @@ def evaluate_video(
         n_intervals=len(windows),
         identity=identity_counts(sequence, "point", settings.distance_px),
         hota=hota_counts(sequence, "point", zero_distance),
-        infoless=infoless_counts(run.frames.infoless[ok], truth),
+        infoless=infoless_counts(run.frames.infoless[ok], truth) if classified else None,
         frames_not_evaluated=video.n_frames - int(ok.sum()),
         gt_points_in_intervals=dropped,
         detection=detection,
@@ -448,7 +453,7 @@ def json_document(evaluation: DatasetEvaluation) -> dict[str, Any]:
                 "clear_in": asdict(video.clear_in) if video.clear_in is not None else None,
                 "identity": asdict(video.identity),
                 "hota": video.hota.summary(),
-                "infoless": asdict(video.infoless),
+                "infoless": asdict(video.infoless) if video.infoless is not None else None,
                 "detection": asdict(video.detection) if video.detection is not None else None,
             }
         )

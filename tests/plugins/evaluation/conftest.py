@@ -49,8 +49,13 @@ def write_run(
     infoless_frames: Iterable[int] = (),
     detections: Mapping[int, np.ndarray] | None = None,
     status: Mapping[int, str] | None = None,
+    classifier: bool = True,
 ) -> Path:
-    """A run folder: tracks.txt (80x80 boxes around the points) and frames.csv (every frame)."""
+    """A run folder: tracks.txt (80x80 boxes around the points) and frames.csv (every frame).
+
+    Without a classifier (a batch tracker's run) the probability column is empty and no frame is
+    labelled info-less.
+    """
     folder = runs / name
     folder.mkdir(parents=True)
     lines = []
@@ -65,10 +70,11 @@ def write_run(
     for frame in range(n_frames):
         points = np.zeros((0, 2)) if detections is None else detections.get(frame, np.zeros((0, 2)))
         text = ";".join(f"{x:.1f} {y:.1f}" for x, y in points)
-        label = int(frame in infoless)
+        label = int(frame in infoless and classifier)
+        probability = (0.9 if label else 0.1) if classifier else ""
         frame_status = "ok" if status is None else status.get(frame, "ok")
         rows.append(
-            f"{frame + 1},{frame_status},{0.9 if label else 0.1},{label},{len(points)},{text},1,1,1,0"
+            f"{frame + 1},{frame_status},{probability},{label},{len(points)},{text},1,1,1,0"
         )
     (folder / "frames.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
     summary = {"video": name, "n_frames": n_frames, "pipeline": "test", "pipeline_hash": "0123456789ab"}

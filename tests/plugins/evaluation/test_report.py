@@ -173,3 +173,22 @@ def test_non_positive_distance_is_rejected(folders: tuple[Path, Path]) -> None:
     dataset, runs = folders
     with pytest.raises(UserError, match=r"--dist is 0\.0; expected a positive number of pixels"):
         evaluate_dataset(dataset, runs, EvalSettings(distance_px=0.0))
+
+
+def test_a_run_without_a_classifier_has_no_infoless_scores(
+    tmp_path: Path, make_video: Callable[..., Path], make_run: Callable[..., Path]
+) -> None:
+    dataset, runs = tmp_path / "dataset", tmp_path / "runs"
+    truth = _walk(30, skip=INTERVAL)
+    make_video(dataset, "v", truth, n_frames=30, intervals=[INTERVAL])
+    make_run(runs, "v", truth, n_frames=30, classifier=False)
+    evaluation = evaluate_dataset(dataset, runs)
+    for row in (evaluation.video_rows()[0], evaluation.mean_row(), evaluation.pooled_row()):
+        # Not applicable, not 0: nothing was classified.
+        for key in ("IL-Precision", "IL-Recall", "IL-F1", "IL-Misclassified"):
+            assert math.isnan(row[key]), (key, row[key])
+        assert row["MOTA"] == 100.0
+    # The same run with a classifier that calls no frame info-less scores 0.
+    make_run(tmp_path / "classified", "v", truth, n_frames=30, classifier=True)
+    row = evaluate_dataset(dataset, tmp_path / "classified").video_rows()[0]
+    assert row["IL-F1"] == 0.0 and row["IL-Recall"] == 0.0
