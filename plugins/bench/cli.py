@@ -16,7 +16,11 @@ def register(app: typer.Typer) -> None:
 
 # The options of ``bench_command``, one alias each (typer reads them from the signature).
 PipelinesArgument = Annotated[
-    list[Path], typer.Argument(help="Pipeline YAML files, one table row each.")
+    list[Path],
+    typer.Argument(
+        help="Pipeline YAML files, one table row each, or table files listing them"
+        " (pipelines/tables/table1.yaml: the paper's Table 1 and our rows)."
+    ),
 ]
 DatasetOption = Annotated[
     Path, typer.Option("--dataset", "-d", help="Dataset folder (one sub-folder per video).")
@@ -86,15 +90,17 @@ def bench_command(
     from trackfw.errors import UserError
     from trackfw_plugins.bench.executor import ExecutorOptions, make_executor
     from trackfw_plugins.bench.sweep import plan_sweep
+    from trackfw_plugins.bench.table_file import expand_tables
 
     error_console = Console(stderr=True)
     # The table is built after every job ran; a bad threshold must not wait for that.
     if not (math.isfinite(dist) and dist > 0):
         raise UserError(f"--dist is {dist}; expected a positive number of pixels.")
     registry = get_registry()
+    expanded = expand_tables(pipelines)
     plan = plan_sweep(
         registry,
-        pipelines,
+        expanded.files,
         dataset,
         out,
         overrides or [],
@@ -108,14 +114,24 @@ def bench_command(
         ExecutorOptions(jobs=jobs, address=address, retries=retries, registry=registry),
     )
     sweep = _run_with_progress(plan, runner, executor, quiet, error_console)
-    _write_outputs(plan, sweep, out, dist, error_console)
+    _write_outputs(plan, sweep, out, dist, error_console, expanded.paper)
 
 
-def _write_outputs(plan: Any, sweep: Any, out: Path, dist: float, error_console: Any) -> None:
-    """Write the table (Markdown on stdout too) and the sweep's counts; exit 2 when a job failed."""
+def _write_outputs(
+    plan: Any,
+    sweep: Any,
+    out: Path,
+    dist: float,
+    error_console: Any,
+    paper: dict[Path, dict[str, float]],
+) -> None:
+    """Write the table (Markdown on stdout too) and the sweep's counts; exit 2 when a job failed.
+
+    ``paper``: the paper's figures per pipeline file, quoted by table files.
+    """
     from trackfw_plugins.bench.report import build_table, markdown_table, write_table
 
-    rows = build_table(plan, distance_px=dist)
+    rows = build_table(plan, distance_px=dist, paper=paper)
     paths = write_table(rows, out, distance_px=dist)
     typer.echo(markdown_table(rows, distance_px=dist), nl=False)
     error_console.print(

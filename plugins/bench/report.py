@@ -42,11 +42,14 @@ METRICS = ("MOTA", "MOTP", "MOTA-In", "MOTP-In", "IDF1", "HOTA", "IL-F1")
 PERCENT_METRICS = ("MOTA", "MOTA-In", "IDF1", "HOTA", "IL-F1")
 PIXEL_METRICS = ("MOTP", "MOTP-In")
 SPEED = ("fps", *(f"ms {kind}" for kind in STAGE_KINDS))
+PAPER_PREFIX = "paper "
+#: The paper's figures beside ours in table.md (every quoted one goes to table.csv).
+PAPER_COLUMNS = ("paper MOTA", "paper MOTA-In")
 HEADERS = {
     "MOTA": "MOTA %", "MOTP": "MOTP px", "MOTA-In": "MOTA-In %", "MOTP-In": "MOTP-In px",
     "IDF1": "IDF1 %", "HOTA": "HOTA %", "IL-F1": "IL-F1 %", "fps": "fps",
     "ms detector": "ms det", "ms classifier": "ms cls", "ms tracker": "ms trk",
-    "ms gap_matcher": "ms gap",
+    "ms gap_matcher": "ms gap", "paper MOTA": "paper MOTA %", "paper MOTA-In": "paper MOTA-In %",
 }  # fmt: skip
 
 
@@ -61,6 +64,7 @@ class TableRow:
         videos_total: videos of the dataset.
         metrics: the evaluation's mean row (every metric it has; NaN when undefined).
         speed: ``fps`` and ``ms <stage>``, means over the completed videos (NaN when none).
+        paper: the paper's figures for this row when a table file quotes them.
     """
 
     pipeline: str
@@ -69,11 +73,14 @@ class TableRow:
     videos_total: int
     metrics: dict[str, float] = field(default_factory=dict)
     speed: dict[str, float] = field(default_factory=dict)
+    paper: dict[str, float] = field(default_factory=dict)
 
     def value(self, column: str) -> float:
-        """A metric or speed value; NaN when absent."""
+        """A metric, speed or ``paper <metric>`` value; NaN when absent."""
         if column in self.speed:
             return self.speed[column]
+        if column.startswith(PAPER_PREFIX):
+            return self.paper.get(column.removeprefix(PAPER_PREFIX), math.nan)
         return float(self.metrics.get(column, math.nan))
 
 
@@ -106,11 +113,17 @@ def _speed(run_dirs: list[Path]) -> dict[str, float]:
     return speed
 
 
-def build_table(plan: SweepPlan, distance_px: float = 40.0) -> list[TableRow]:
+def build_table(
+    plan: SweepPlan,
+    distance_px: float = 40.0,
+    paper: dict[Path, dict[str, float]] | None = None,
+) -> list[TableRow]:
     """Evaluate every pipeline's completed runs; one row per pipeline, in the plan's order.
 
+    ``paper`` maps a pipeline file (resolved) to the paper's figures quoted for it (table files).
     Also writes eval.csv and eval.json into each pipeline's runs folder.
     """
+    paper = paper or {}
 
     settings = EvalSettings(distance_px=distance_px)
     names = [entry.pipeline.name for entry in plan.pipelines]
@@ -123,9 +136,7 @@ def build_table(plan: SweepPlan, distance_px: float = 40.0) -> list[TableRow]:
             if not is_done(run_dir):
                 continue
             done_dirs.append(run_dir)
-            evaluations.append(
-                evaluate_video(video, read_run(run_dir, video.n_frames), settings)
-            )
+            evaluations.append(evaluate_video(video, read_run(run_dir, video.n_frames), settings))
         label = entry.pipeline.name
         if names.count(label) > 1:
             label = f"{label} ({entry.pipeline.content_hash})"
@@ -139,6 +150,7 @@ def build_table(plan: SweepPlan, distance_px: float = 40.0) -> list[TableRow]:
             }
             write_reports(dataset_evaluation, entry.runs_dir)
         row.speed = _speed(done_dirs)
+        row.paper = dict(paper.get(entry.file.resolve(), {}))
         rows.append(row)
     return rows
 
@@ -155,8 +167,9 @@ def _format(value: float, column: str) -> str:
 
 def markdown_table(rows: list[TableRow], distance_px: float = 40.0) -> str:
     """The table in Markdown, with a line that says how it was computed."""
-    columns = [*METRICS, *SPEED]
-    header = ["pipeline", "videos", *(HEADERS[column] for column in columns)]
+    quoted = PAPER_COLUMNS if any(row.paper for row in rows) else ()
+    columns = [*METRICS, *quoted, *SPEED]
+    header = ["pipeline", "videos", *(HEADERS.get(column, column) for column in columns)]
     lines = [
         "| " + " | ".join(header) + " |",
         "|" + "|".join(["---", "---:", *(["---:"] * len(columns))]) + "|",
@@ -170,6 +183,11 @@ def markdown_table(rows: list[TableRow], distance_px: float = 40.0) -> str:
         f"Means over videos; match distance {distance_px:g} px; MOTA-In/MOTP-In over the frames"
         " (a, b, b+1) of each interval; IL-F1: info-less frame classification; fps and ms per"
         " stage call from summary.json (cached detector/classifier time counted)."
+        + (
+            " paper: Yu et al. 2018, Table 1 (their detector and data), as quoted by the table file."
+            if quoted
+            else ""
+        )
     )
     return "\n".join(lines) + "\n"
 
@@ -183,7 +201,12 @@ def csv_table(rows: list[TableRow]) -> str:
     extra: list[str] = []
     for row in rows:
         extra.extend(key for key in row.metrics if key not in METRICS and key not in extra)
-    columns = [*METRICS, *SPEED, *extra]
+    quoted = [
+        f"{PAPER_PREFIX}{metric}"
+        for metric in ("MOTA", "MOTP", "MOTA-In", "MOTP-In")
+        if any(metric in row.paper for row in rows)
+    ]
+    columns = [*METRICS, *quoted, *SPEED, *extra]
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(["pipeline", "pipeline_hash", "videos_done", "videos_total", *columns])
