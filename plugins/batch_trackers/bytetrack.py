@@ -19,8 +19,10 @@ The modern row beside the paper's trackers. Every frame:
 Choices that differ from the reference implementations, and why: the filter state is the point
 ``(x, y, vx, vy)`` of :mod:`trackfw_plugins.maths.kalman` (the paper's boxes are fixed 80x80, so a
 box-aspect state adds nothing); the reference's duplicate-track removal between tracked and lost
-sets is left out; a confirmed track reports its birth detection too. Only observed positions are
-reported (ByteTrack never fills gaps).
+sets is left out. As in the reference (ByteTrack's ``is_activated``; the roboflow ``trackers``
+package's ``tracker_id`` -1 before ``minimum_consecutive_frames``), a track is output from the
+frame that confirms it, so its birth detection is not (``report_birth`` adds it). Only observed
+positions are reported (ByteTrack never fills gaps).
 
 See ``docs/algorithms/batch-trackers.md#bytetrack``.
 """
@@ -60,6 +62,16 @@ class ByteTrackParams(StageParams):
     )
     process_noise: float = Field(1.0, gt=0.0, description="Kalman transition variance Q in px²")
     initial_variance: float = Field(1000.0, gt=0.0, description="Kalman initial variance P0")
+    confirm_first_frame: bool = Field(
+        True,
+        description="tracks born on the first frame with detections are confirmed at once (the"
+        " original ByteTrack); false: like any birth (the roboflow trackers package)",
+    )
+    report_birth: bool = Field(
+        False,
+        description="a confirmed track also reports the detection it was born on (the reference"
+        " outputs a track from its confirmation on)",
+    )
 
 
 @dataclass
@@ -155,8 +167,10 @@ def track_bytetrack(
             track_id = live.ids[index]
             if not live.confirmed[index]:
                 live.confirmed[index] = True
-                out_ids.append(track_id)
-                out_rows.append(pending.pop(track_id))
+                birth = pending.pop(track_id)
+                if params.report_birth:
+                    out_ids.append(track_id)
+                    out_rows.append(birth)
             live.sizes[index] = detections.sizes[row]
             live.tracked[index] = True
             live.last_seen[index] = frame
@@ -176,7 +190,7 @@ def track_bytetrack(
         live.keep(np.array(survivors, dtype=np.int64))
         births = free_high[detections.scores[free_high] >= params.activation_threshold]
         if len(births):
-            first = not seen_detections
+            first = params.confirm_first_frame and not seen_detections
             born = KalmanBank.start(detections.points[births], params.initial_variance)
             live.bank.means = np.vstack([live.bank.means, born.means])
             live.bank.covariances = np.concatenate([live.bank.covariances, born.covariances])

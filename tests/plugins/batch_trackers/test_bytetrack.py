@@ -75,5 +75,26 @@ def test_the_lost_buffer_is_in_seconds(buffer_s: float, fps: float, same_identit
     path[20:38] = np.nan  # 18 frames unseen
     params = ByteTrackParams(lost_buffer_s=buffer_s)
     tracks = track_bytetrack(_video([path], [np.ones(60)]), fps=fps, params=params)
-    assert len(tracks) == 42
+    # A new identity is output from its confirmation: the re-birth frame 38 is not reported.
+    assert len(tracks) == (42 if same_identity else 41)
     assert len(tracks.track_ids()) == (1 if same_identity else 2)
+
+
+@pytest.mark.parametrize("report_birth", [False, True])
+def test_a_track_is_output_from_its_confirmation_unless_report_birth(report_birth: bool) -> None:
+    first = _line((100, 100), (3, 0), 30)
+    late = _line((400, 300), (0, 3), 30)
+    late[:10] = np.nan  # born on frame 10, confirmed on frame 11
+    video = _video([first, late], [np.ones(30), np.ones(30)])
+    tracks = track_bytetrack(video, fps=25, params=ByteTrackParams(report_birth=report_birth))
+    assert tracks.track_ids().tolist() == [1, 2]
+    # Tracks born on the first frame with detections are confirmed at once (the reference's rule).
+    assert tracks.track(1)[0].tolist() == list(range(30))
+    assert tracks.track(2)[0].tolist() == list(range(10 if report_birth else 11, 30))
+
+
+def test_first_frame_tracks_wait_for_confirmation_without_confirm_first_frame() -> None:
+    path = _line((100, 100), (3, 0), 20)
+    params = ByteTrackParams(confirm_first_frame=False)
+    tracks = track_bytetrack(_video([path], [np.ones(20)]), fps=25, params=params)
+    assert tracks.track(1)[0].tolist() == list(range(1, 20))
