@@ -315,7 +315,9 @@ def evaluate_video(
         for frame, points, is_ok in frame_rows:
             if is_ok:
                 heads = video.ground_truth.heads.get(frame, empty)
-                detection = detection + frame_detection_counts(points, heads, settings.detection_match_ratio)
+                detection = detection + frame_detection_counts(
+                    points, heads, settings.detection_match_ratio
+                )
     return VideoEvaluation(
         name=video.name,
         n_frames=video.n_frames,
@@ -403,7 +405,9 @@ def _one_configuration(
             " and --set, or into an empty --output."
         )
     pipeline_hash = next(iter(groups), None)
-    names = {str(summary.get("pipeline")) for summary in summaries.values() if summary.get("pipeline")}
+    names = {
+        str(summary.get("pipeline")) for summary in summaries.values() if summary.get("pipeline")
+    }
     return (names.pop() if len(names) == 1 else None), pipeline_hash
 
 

@@ -77,7 +77,12 @@ def write_run(
             f"{frame + 1},{frame_status},{probability},{label},{len(points)},{text},1,1,1,0"
         )
     (folder / "frames.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
-    summary = {"video": name, "n_frames": n_frames, "pipeline": "test", "pipeline_hash": "0123456789ab"}
+    summary = {
+        "video": name,
+        "n_frames": n_frames,
+        "pipeline": "test",
+        "pipeline_hash": "0123456789ab",
+    }
     (folder / "summary.json").write_text(json.dumps(summary) + "\n", encoding="utf-8")
     (folder / "gaps.json").write_text("[]\n", encoding="utf-8")
     return folder
