@@ -202,8 +202,14 @@ def train_classifier(
         rules=rules,
     )
     scores = summary.cross_validated
+    # One video has no held-out fold: its scores are in-sample and must not read as validated.
+    scored = (
+        f"cross-validated ({summary.folds} folds by video"
+        if summary.folds >= 2
+        else "in-sample (one video: no held-out fold"
+    )
     echo(
-        f"cross-validated ({summary.folds} folds by video, C={summary.C}, gamma={summary.gamma}):"
+        f"{scored}, C={summary.C}, gamma={summary.gamma}):"
         f" precision {_percent(scores.precision)}, recall {_percent(scores.recall)},"
         f" F1 {_percent(scores.f1)}"
     )

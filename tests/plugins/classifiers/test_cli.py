@@ -121,3 +121,22 @@ def test_rule_options_are_recorded_and_checked(dataset: Path, tmp_path: Path) ->
 
     with pytest.raises(UserError, match="online rule"):
         train_classifier(dataset, tmp_path / "m.json", leave_probability=0.9, echo=lambda _: None)
+
+
+def test_any_detector_trains_and_one_video_is_in_sample(dataset: Path, tmp_path: Path) -> None:
+    """A pixel detector (yolox) measures N_t and S_t; one video gives no held-out fold."""
+    app = typer.Typer()
+    register(app)
+    (tmp_path / "one.txt").write_text("video0\n")
+    out = tmp_path / "model.json"
+    arguments = [
+        "--dataset", str(dataset), "--out", str(out), "--detector", "yolox",
+        "--detector-param", "model=light-person-192", "--videos-from", str(tmp_path / "one.txt"),
+    ]  # fmt: skip
+    result = CliRunner().invoke(app, arguments)
+    assert result.exit_code == 0, result.output
+    assert "in-sample (one video: no held-out fold" in result.output
+    assert "cross-validated" not in result.output
+    model = load_model(out)
+    assert model.training["detector"] == {"type": "yolox", "params": {"model": "light-person-192"}}
+    assert model.training["videos"] == ["video0"]
