@@ -16,7 +16,10 @@ points are also scored as below against the head proxy of each body box. ``yolox
 ``yolox`` detector with its defaults, ``yolox-640`` one with input_size 640, ``light-person-192``
 the small model; ``--yolox-set`` changes a parameter of all of them and ``--thresholds`` adds rows
 at other score thresholds (read off the same run). The yolox rows also score the head point at
-0.116 of the box height (the Oxford Town Centre figure) beside the model's own fraction.
+0.116 of the box height (the Oxford Town Centre figure) beside the model's own fraction. Each
+person detector also gets a line saying why boxes were missed (more than half hidden by nearer
+people, at the frame border, found but drawn differently, other) and what its false boxes overlap
+(see :class:`Breakdown`).
 
 **Datasets** (``--dataset``):
 
@@ -171,6 +174,82 @@ def match_boxes(boxes: np.ndarray, truth: np.ndarray, iou: float = 0.5) -> int:
     return int(np.count_nonzero(assignment >= 0))
 
 
+def occluded_share(truth: np.ndarray) -> np.ndarray:
+    """Share of each ``(M, 4)`` truth box covered by the boxes of nearer people, in [0, 1].
+
+    A person whose box ends lower in the frame stands nearer the camera (people on one ground
+    plane), so the overlap of a box whose bottom is lower hides part of this one; the covered
+    shares are summed (an upper bound where occluders overlap each other) and clipped at 1.
+
+    >>> occluded_share(np.array([[0.0, 0, 10, 20], [5.0, 0, 10, 30]])).tolist()
+    [0.5, 0.0]
+    """
+    bottoms = truth[:, 1] + truth[:, 3]
+    overlap = np.zeros((len(truth), len(truth)))
+    for index, box in enumerate(truth):
+        low = np.maximum(box[:2], truth[:, :2])
+        high = np.minimum(box[:2] + box[2:], truth[:, :2] + truth[:, 2:])
+        overlap[index] = np.clip(high - low, 0.0, None).prod(axis=1) / (box[2] * box[3])
+    nearer = bottoms[None, :] > bottoms[:, None]
+    return np.clip((overlap * nearer).sum(axis=1), 0.0, 1.0)
+
+
+class Breakdown:
+    """Why ground-truth boxes are missed and why detections are false, summed over frames.
+
+    Misses: ``occluded`` (more than half the box hidden by nearer people), ``border`` (the box
+    touches the frame edge), ``drawn`` (a detection overlaps it at IoU 0.3-0.5: found, but its box
+    is drawn differently, e.g. the visible part only) and ``other``. False detections: ``part``
+    (IoU 0.1-0.5 with a ground-truth box) and ``none`` (no ground-truth box within IoU 0.1: a
+    person the ground truth leaves out, or a false detection).
+
+    >>> breakdown = Breakdown()
+    >>> truth = np.array([[0.0, 0, 10, 20], [50.0, 50, 10, 20], [52.0, 52, 10, 20]])
+    >>> breakdown.add(np.array([[0.0, 0, 10, 20], [80.0, 10, 5, 5]]), truth, 100, 100)
+    >>> breakdown.summary()
+    'missed: occluded 1 (of 1), border 0, drawn differently 0, other 1; false: partial overlap 0, no truth box 1'
+    """
+
+    def __init__(self) -> None:
+        self.counts = dict.fromkeys(("occluded", "border", "drawn", "other", "part", "none"), 0)
+        self.occluded_truth = 0
+
+    def add(self, boxes: np.ndarray, truth: np.ndarray, width: int, height: int) -> None:
+        """Count one frame's ``(N, 4)`` detections against its ``(M, 4)`` truth boxes."""
+        iou = box_iou(truth, boxes) if len(boxes) and len(truth) else np.zeros((len(truth), 0))
+        assignment = hungarian(1.0 - iou, gate=0.5) if iou.size else -np.ones(len(truth), dtype=int)
+        hidden = occluded_share(truth) if len(truth) else np.zeros(0)
+        self.occluded_truth += int(np.count_nonzero(hidden > 0.5))
+        right, bottom = truth[:, 0] + truth[:, 2], truth[:, 1] + truth[:, 3]
+        at_border = (
+            (truth[:, 0] < 2) | (truth[:, 1] < 2) | (right > width - 2) | (bottom > height - 2)
+        )
+        best = iou.max(axis=1) if iou.shape[1] else np.zeros(len(truth))
+        for index in np.flatnonzero(assignment < 0):
+            reason = (
+                "occluded" if hidden[index] > 0.5
+                else "border" if at_border[index]
+                else "drawn" if best[index] >= 0.3
+                else "other"
+            )  # fmt: skip
+            self.counts[reason] += 1
+        matched = set(assignment[assignment >= 0].tolist())
+        overlap = iou.max(axis=0) if iou.shape[0] else np.zeros(len(boxes))
+        for index in range(len(boxes)):
+            if index not in matched:
+                self.counts["part" if overlap[index] >= 0.1 else "none"] += 1
+
+    def summary(self) -> str:
+        """``missed: occluded a, border b, ...; false: part c, none d``."""
+        c = self.counts
+        return (
+            f"missed: occluded {c['occluded']} (of {self.occluded_truth}), border {c['border']},"
+            f" drawn differently"
+            f" {c['drawn']}, other {c['other']}; false: partial overlap {c['part']},"
+            f" no truth box {c['none']}"
+        )
+
+
 class Counts:
     """True positives, detections and ground truth summed over frames."""
 
@@ -265,6 +344,7 @@ def mot_report(
         boxes_counts = {level: Counts() for level in levels}
         head_counts = {level: Counts() for level in levels}
         proxy_counts = Counts()
+        breakdown = Breakdown()
         seconds = 0.0
         for frame in frames:
             image = cv2.imread(str(mot.frame_paths[frame]))
@@ -289,6 +369,13 @@ def mot_report(
                     int(keep.sum()),
                     len(truth_heads),
                 )
+            if bodies is not None:
+                breakdown.add(
+                    bodies[detections.scores >= configured] if person_model else bodies,
+                    truth,
+                    mot.width,
+                    mot.height,
+                )
             if bodies is not None and name != "hog":
                 proxy = body_head_points(
                     bodies[detections.scores >= configured], MEASURED_HEAD_FRACTION
@@ -306,6 +393,8 @@ def mot_report(
             )
         if proxy_counts.found or proxy_counts.truth:
             print(f"  {name + ' (head 0.116)':22s} {'':45s} head points {proxy_counts.summary()}")
+        if bodies is not None:
+            print(f"  {'':22s} boxes {breakdown.summary()}")
 
 
 def main() -> None:
