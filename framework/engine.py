@@ -259,6 +259,8 @@ class _OnlineLoop:
         self.frames.append(observation.record)
         if not observation.readable or (self.segment is None and observation.t < self.start):
             return  # nothing is tracked before the start frame (engine.init)
+        if not observation.infoless or self.segment is None:
+            self.stages.tracker.see(observation.image)
         if self.segment is None:
             self.segment = self._initialise(observation)
         elif observation.infoless:

@@ -32,7 +32,7 @@ from typing import Any, ClassVar, Generic, TypeVar, cast, get_args, get_origin
 import numpy as np
 from pydantic import BaseModel, ConfigDict, field_validator
 
-from trackfw.arrays import FloatArray, IntArray
+from trackfw.arrays import FloatArray, IntArray, UInt8Array
 from trackfw.records import (
     ClassifierDecision,
     Detections,
@@ -251,6 +251,13 @@ class Tracker(Stage[P]):
     @abc.abstractmethod
     def states(self) -> list[TargetState]:
         """The current state of every target, in the order of ``initialise``."""
+
+    def see(self, image: UInt8Array | None) -> None:
+        """The pixels of the frame the next call (initialise, step, reinitialise) is about.
+
+        Called on every tracked frame; ``image`` is None unless some stage of the pipeline
+        needs pixels (a tracker that does says so with ``uses_pixels`` or ``needs_pixels``).
+        """
 
     def statuses(self) -> list[str]:
         """Every target's lifecycle state (:data:`trackfw.records.TARGET_STATES`), in order.

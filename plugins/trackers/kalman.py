@@ -16,13 +16,14 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from trackfw.arrays import FloatArray, IntArray
+from trackfw.arrays import FloatArray, IntArray, UInt8Array
 from trackfw.records import NO_MATCH, OUT_OF_VIEW, TENTATIVE, Detections, TargetState, VideoContext
 from trackfw.stages import StageParams, Tracker
 from trackfw_plugins.maths.assignment import distance_matrix, greedy_nearest, hungarian
 from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R, KalmanBank
 from trackfw_plugins.maths.tps_rpm import match_points
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
+from trackfw_plugins.trackers.appearance_memory import AppearanceMemory, AppearanceSettings
 from trackfw_plugins.trackers.lifecycle import Lifecycle, LifecycleSettings
 
 
@@ -64,6 +65,10 @@ class KalmanTrackerParams(StageParams):
         default_factory=LifecycleSettings,
         description="when a target is lost, confirmed after an interval, or re-acquired",
     )
+    appearance: AppearanceSettings = Field(
+        default_factory=AppearanceSettings,
+        description="the appearance check of re-acquisition (reads pixels unless 'none')",
+    )
 
 
 class KalmanTracker(Tracker[KalmanTrackerParams]):
@@ -71,9 +76,17 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
 
     name = "kalman"
 
+    @property
+    def needs_pixels(self) -> bool:
+        return self.params.appearance.descriptor != "none"
+
+    def see(self, image: UInt8Array | None) -> None:
+        self.image = image
+
     def start(self, video: VideoContext) -> None:
         params = self.params
         self.video = video
+        self.image = None
         self.gate = (
             None
             if params.gate_px_at_1080 is None
@@ -88,6 +101,9 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.bank = KalmanBank.start(positions, params.P0, params.Q, params.R)
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
         self.life = Lifecycle.start(params.lifecycle, self.video, t, positions)
+        self.memory = AppearanceMemory(
+            params.appearance, len(positions), self.video.height, self.life.fps
+        )
 
     def associate(
         self, predicted: FloatArray, detections: Detections, rows: IntArray | None = None
@@ -126,6 +142,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.matched[targets] = detections.index[rows[hit]]
         sides = box_sides(detections)
         life.supported(t, targets, self.bank.positions[targets], sides[rows[hit]])
+        self.memory.remember(t, self.image, targets, detections, rows[hit])
         life.unsupported(t, active[~hit], self.bank.positions[active[~hit]])
         found, columns = self._reacquire(t, detections, inactive, targets, rows[hit])
         life.supported(t, found, self.bank.positions[found], sides[columns])
@@ -144,9 +161,11 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         life = self.life
         expected = life.expected(inactive, self.bank.positions, anchors)
         free = np.setdiff1d(np.arange(len(detections)), taken)
-        columns = life.reacquire(
+        cost = life.reacquire_cost(
             t, expected, inactive, detections.points[free], box_sides(detections)[free]
         )
+        cost[self.memory.veto(self.image, inactive, detections, free, cost <= 1.0)] = np.inf
+        columns = hungarian(cost, 1.0)
         hit = columns >= 0
         found, chosen = inactive[hit], free[columns[hit]]
         self._restart(found, detections.points[chosen])

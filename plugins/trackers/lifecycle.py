@@ -15,9 +15,8 @@ import numpy as np
 from pydantic import ConfigDict, Field
 
 from trackfw.arrays import BoolArray, FloatArray, IntArray
-from trackfw.records import LOST, NO_MATCH, OUT_OF_VIEW, TENTATIVE, TRACKED, VideoContext
+from trackfw.records import LOST, OUT_OF_VIEW, TENTATIVE, TRACKED, VideoContext
 from trackfw.stages import FiniteModel
-from trackfw_plugins.maths.assignment import hungarian
 
 #: States whose targets the tracker associates on every frame.
 ACTIVE = (TRACKED, TENTATIVE)
@@ -139,9 +138,7 @@ class Lifecycle:
         self.status[changed] = status
         self.since[changed] = t
 
-    def supported(
-        self, t: int, rows: IntArray, positions: FloatArray, sizes: FloatArray
-    ) -> None:
+    def supported(self, t: int, rows: IntArray, positions: FloatArray, sizes: FloatArray) -> None:
         """``rows`` had a detection at ``(M, 2)`` positions of ``(M,)`` box sides (NaN when
         unknown) on frame ``t``: they are tracked."""
         rows = np.asarray(rows, dtype=np.int64)
@@ -227,21 +224,20 @@ class Lifecycle:
         )
         return np.minimum(gate, settings.reacquire_max_px_at_1080) * self.scale
 
-    def reacquire(
+    def reacquire_cost(
         self, t: int, expected: FloatArray, rows: IntArray, points: FloatArray, sizes: FloatArray
-    ) -> IntArray:
-        """Row of ``points`` (box sides ``sizes``) for each inactive target of ``rows`` (``-1``
-        when none).
+    ) -> FloatArray:
+        """``(M, N)`` cost of giving each inactive target of ``rows`` each of ``points`` (box
+        sides ``sizes``); a pair is possible where the cost is at most 1.
 
         The cost is the distance over the target's gate, so a target lost longer reaches
         farther; an out-of-view target comes back through the edge near where it is expected.
+        Heads of another size are refused (infinite cost).
         """
-        if len(rows) == 0 or len(points) == 0:
-            return np.full(len(rows), NO_MATCH, dtype=np.int64)
         cost = np.linalg.norm(expected[:, None, :] - points[None, :, :], axis=2)
         cost = cost / self.gates(t, rows)[:, None]
         cost[self.size_mismatch(rows, sizes)] = np.inf
-        return hungarian(cost, 1.0)
+        return cost
 
     def place(self, t: int, rows: IntArray, expected: FloatArray) -> None:
         """Inactive ``rows`` not re-acquired: out of view when expected outside, lost otherwise."""

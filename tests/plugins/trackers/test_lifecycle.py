@@ -145,3 +145,45 @@ def test_a_bystander_of_another_head_size_is_not_taken() -> None:
     tracker.step(1, _seen(GROUP, [30.0, 30.0, 30.0]))
     tracker.step(2, _seen(GROUP, [30.0, 80.0, 30.0]))
     assert [s.matched_detection for s in tracker.states()] == [0, -1, 2]
+
+
+def _painted(spots: list[tuple[float, float, tuple[int, int, int]]]) -> np.ndarray:
+    """A grey 720p frame with a 60 px square of colour (BGR) at each spot."""
+    image = np.full((720, 1280, 3), 128, dtype=np.uint8)
+    for x, y, colour in spots:
+        image[int(y) - 30 : int(y) + 30, int(x) - 30 : int(x) + 30] = colour
+    return image
+
+
+def test_appearance_refuses_a_bystander_that_looks_different() -> None:
+    # Target 1 (red) vanishes; 2 s later a green bystander stands 10 px from where it is
+    # expected and the red person 30 px away. By position alone the bystander is taken;
+    # with the patch descriptor the red person is.
+    red, green = (0, 0, 255), (0, 255, 0)
+    chosen = {}
+    for descriptor in ("none", "patch"):
+        tracker = load_registry().build_stage(
+            "tracker",
+            {
+                "type": "kalman",
+                "params": {
+                    "lifecycle": {"lost_after_s": 0.2, "reacquire_max_px_at_1080": 120.0},
+                    "appearance": {"descriptor": descriptor, "max_distance": 0.3},
+                },
+            },
+        )
+        assert tracker.needs_pixels == (descriptor != "none")
+        tracker.start(VIDEO)
+        tracker.initialise(0, np.array([1]), np.array([[400.0, 300.0]]))
+        tracker.see(_painted([(400, 300, red)]))
+        tracker.step(1, _seen([[400.0, 300.0]]))
+        empty = _painted([])
+        for t in range(2, 52):
+            tracker.see(empty)
+            tracker.step(t, Detections.empty())
+        assert tracker.statuses() == ["lost"]
+        tracker.see(_painted([(410, 300, green), (430, 300, red)]))
+        tracker.step(52, _seen([[410.0, 300.0], [430.0, 300.0]]))
+        assert tracker.statuses() == ["tracked"]
+        chosen[descriptor] = tracker.states()[0].matched_detection
+    assert chosen == {"none": 0, "patch": 1}

@@ -1,0 +1,136 @@
+"""What each target looked like, for re-acquiring it with its old identity.
+
+See docs/algorithms/segment-tracker.md#re-acquisition. While a target is tracked its descriptor
+is refreshed from its detection about once per ``refresh_s``; when a lost target meets a
+candidate detection inside its gate, the candidate is described and refused when it looks too
+different. Two descriptors are offered: ``patch``, the paper's colour/texture patch descriptor
+(mean RGB and HSV, uniform LBP, HOG; :mod:`trackfw_plugins.maths.appearance`), and
+``person-reid``, a pretrained deep embedder (:mod:`trackfw_plugins.maths.person_reid`).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Literal
+
+import numpy as np
+from pydantic import ConfigDict, Field
+
+from trackfw.arrays import BoolArray, FloatArray, IntArray, UInt8Array
+from trackfw.records import Detections
+from trackfw.stages import FiniteModel
+from trackfw_plugins.maths.appearance import appearance_descriptors, appearance_distance_matrix
+from trackfw_plugins.maths.person_reid import (
+    PersonReidEmbedder,
+    body_boxes,
+    cosine_distance_matrix,
+)
+from trackfw_plugins.maths.reid_crop import head_size
+
+
+class AppearanceSettings(FiniteModel):
+    """The appearance check of re-acquisition."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    descriptor: Literal["none", "patch", "person-reid"] = Field(
+        "none",
+        description="'patch' (the paper's colour/texture descriptor), 'person-reid' (deep"
+        " embedder) or 'none' (re-acquire by position alone; no pixels read)",
+    )
+    max_distance: float = Field(
+        0.3,
+        gt=0.0,
+        description="a candidate farther than this from the target's descriptor is refused"
+        " (patch: Euclidean, 0..1.41; person-reid: cosine, 0..2)",
+    )
+    refresh_s: float = Field(
+        1.0, gt=0.0, description="seconds between two descriptors of a tracked target"
+    )
+    reid_model: str = Field(
+        "0287", description="person-reid: embedder '0287', '0248' or an ONNX path"
+    )
+
+
+@lru_cache(maxsize=2)
+def _embedder(model: str) -> PersonReidEmbedder:
+    """One onnxruntime session per model for the process (a tracker restarts per video)."""
+    return PersonReidEmbedder(model, 0)
+
+
+class AppearanceMemory:
+    """The last descriptor of every target, and the appearance veto of re-acquisition."""
+
+    def __init__(self, settings: AppearanceSettings, count: int, height: int, fps: float) -> None:
+        self.settings = settings
+        self.embedder = (
+            _embedder(settings.reid_model) if settings.descriptor == "person-reid" else None
+        )
+        self.fallback_size = head_size(height)
+        self.refresh_frames = settings.refresh_s * fps
+        self.descriptors: list[FloatArray | None] = [None] * count
+        self.described_at = np.full(count, -(10**9), dtype=np.int64)
+
+    @property
+    def active(self) -> bool:
+        """Whether a descriptor is configured."""
+        return self.settings.descriptor != "none"
+
+    def describe(self, image: UInt8Array, detections: Detections, rows: IntArray) -> FloatArray:
+        """``(M, D)`` descriptors of the detections ``rows``."""
+        points = detections.points[rows]
+        if self.embedder is not None:
+            boxes = body_boxes(points, detections, rows, self.fallback_size)
+            return self.embedder.describe(image, boxes)
+        return appearance_descriptors(image, points)
+
+    def remember(
+        self,
+        t: int,
+        image: UInt8Array | None,
+        targets: IntArray,
+        detections: Detections,
+        rows: IntArray,
+    ) -> None:
+        """Targets ``targets`` matched detections ``rows`` on frame ``t``: refresh when due."""
+        if not self.active or image is None or len(targets) == 0:
+            return
+        due = t - self.described_at[targets] >= self.refresh_frames
+        if not due.any():
+            return
+        described = self.describe(image, detections, rows[due])
+        for target, descriptor in zip(targets[due], described, strict=True):
+            self.descriptors[int(target)] = descriptor
+        self.described_at[targets[due]] = t
+
+    def veto(
+        self,
+        image: UInt8Array | None,
+        targets: IntArray,
+        detections: Detections,
+        columns: IntArray,
+        candidates: BoolArray,
+    ) -> BoolArray:
+        """``(M, N)``: where candidate pair (target, detection ``columns[n]``) looks too different.
+
+        Only the detections of some candidate pair are described; a target without a descriptor
+        vetoes nothing.
+        """
+        veto = np.zeros(candidates.shape, dtype=bool)
+        known = np.array([self.descriptors[int(k)] is not None for k in targets], dtype=bool)
+        wanted = candidates[known].any(axis=0) if known.any() else np.zeros(0, dtype=bool)
+        if not self.active or image is None or not wanted.any():
+            return veto
+        gallery = self.describe(image, detections, columns[wanted])
+        query = np.stack([self.descriptors[int(k)] for k in targets[known]])  # type: ignore[misc]
+        distance = (
+            cosine_distance_matrix(query, gallery)
+            if self.embedder is not None
+            else appearance_distance_matrix(query, gallery)
+        )
+        rows = np.flatnonzero(known)
+        veto[np.ix_(rows, np.flatnonzero(wanted))] = distance > self.settings.max_distance
+        return veto
+
+
+__all__ = ["AppearanceMemory", "AppearanceSettings"]
