@@ -25,7 +25,11 @@ from trackfw_plugins.datasets.points import make_points_video
 
 REPO = Path(__file__).resolve().parents[1]
 PIPELINE = REPO / "pipelines" / "proposed-oracle.yaml"
-OVERRIDES = ["stages.gap_matcher.params.lambda2=0"]
+# Point-only videos: neither the appearance term nor re-acquisition's appearance check.
+OVERRIDES = [
+    "stages.gap_matcher.params.lambda2=0",
+    "stages.tracker.params.appearance.descriptor=none",
+]
 
 
 def _sweep(dataset: Path, out: Path, workers: int) -> tuple[float, float]:

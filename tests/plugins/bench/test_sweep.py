@@ -187,7 +187,11 @@ def test_per_pipeline_overrides_apply_to_the_named_pipeline_only(
         [*ORACLE_PIPELINES, REPO / "pipelines" / "proposed-oracle.yaml"],
         dataset,
         tmp_path / "out",
-        ["proposed-oracle:stages.gap_matcher.params.lambda2=0", "engine.box_size=60"],
+        [
+            "proposed-oracle:stages.gap_matcher.params.lambda2=0",
+            "proposed-oracle:stages.tracker.params.appearance.descriptor=none",
+            "engine.box_size=60",
+        ],
     )
     configs = {entry.pipeline.name: entry.pipeline for entry in plan.pipelines}
     assert configs["proposed-oracle"].stages["gap_matcher"].params.lambda2 == 0
