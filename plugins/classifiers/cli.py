@@ -25,9 +25,16 @@ def _percent(value: float) -> str:
 
 
 def _check_options(
-    flow: str, dis_preset: str, reference: str, replay_rounds: int, flow_width: int, c_max: float
+    flow: str,
+    dis_preset: str,
+    reference: str,
+    replay_rounds: int,
+    flow_width: int,
+    c_max: float,
+    out: Path,
+    report: Path | None,
 ) -> None:
-    """Refuse a flow or reference option outside its choices, in one line."""
+    """Refuse an option outside its choices or an output that cannot be written, in one line."""
     if flow not in ("dis", "farneback"):
         raise UserError(f"--flow {flow!r}: expected 'dis' or 'farneback'.")
     if dis_preset not in ("ultrafast", "fast", "medium"):
@@ -38,6 +45,10 @@ def _check_options(
         raise UserError(f"--replay-rounds {replay_rounds}: expected at least 1.")
     if flow_width < 16 or not c_max > 0:
         raise UserError("--flow-width must be at least 16 and --c-max positive.")
+    # Training takes minutes: a model or report that cannot be written is said before it.
+    check_output_file(out, "--out")
+    if report is not None:
+        check_output_file(report, "--report")
 
 
 def _online_rules(
@@ -60,6 +71,55 @@ def _online_rules(
         )
     except ValueError as error:
         raise UserError(f"the online rule options: {error}.") from None
+
+
+def _fit(
+    train_videos: list[Any],
+    settings: Any,
+    rules: OnlineRules,
+    *,
+    select_rules: bool,
+    grid: bool,
+    seed: int,
+    reference: str,
+    replay_rounds: int,
+    echo: Any,
+) -> tuple[Any, Any, OnlineRules, list[dict[str, Any]]]:
+    """Choose the online rules (with --select-rules) and fit the SVM; says its cross-validated
+    scores. Returns the model, the fit summary, the rules and the rule selection's record."""
+    from trackfw_plugins.classifiers.training import fit_model
+    from trackfw_plugins.classifiers.training import select_rules as choose_rules
+
+    selection: list[dict[str, Any]] = []
+    if select_rules:
+        echo("choosing the online rules by cross-validation on the training videos")
+        rules, selection = choose_rules(
+            train_videos, settings, seed=seed, replay_rounds=replay_rounds, log=echo
+        )
+        echo(f"chose {rules.as_dict()}")
+    model, summary = fit_model(
+        train_videos,
+        settings,
+        grid=grid,
+        seed=seed,
+        reference=reference,  # type: ignore[arg-type]  # checked by _check_options
+        replay_rounds=replay_rounds,
+        log=echo,
+        rules=rules,
+    )
+    scores = summary.cross_validated
+    # One video has no held-out fold: its scores are in-sample and must not read as validated.
+    scored = (
+        f"cross-validated ({summary.folds} folds by video"
+        if summary.folds >= 2
+        else "in-sample (one video: no held-out fold"
+    )
+    echo(
+        f"{scored}, C={summary.C}, gamma={summary.gamma}):"
+        f" precision {_percent(scores.precision)}, recall {_percent(scores.recall)},"
+        f" F1 {_percent(scores.f1)}"
+    )
+    return model, summary, rules, selection
 
 
 def _fit_record(summary: Any, support_vectors: int) -> dict[str, Any]:
@@ -158,14 +218,8 @@ def train_classifier(
         read_video_list,
         select_videos,
     )
-    from trackfw_plugins.classifiers.training import fit_model
-    from trackfw_plugins.classifiers.training import select_rules as choose_rules
 
-    _check_options(flow, dis_preset, reference, replay_rounds, flow_width, c_max)
-    # Training takes minutes: a model or report that cannot be written is said before it.
-    check_output_file(out, "--out")
-    if report is not None:
-        check_output_file(report, "--report")
+    _check_options(flow, dis_preset, reference, replay_rounds, flow_width, c_max, out, report)
     rules = _online_rules(
         enter_probability,
         leave_probability,
@@ -184,34 +238,16 @@ def train_classifier(
     train_dirs = select_videos(dataset, train_names)
     echo(f"measuring {len(train_dirs)} training videos with detector {detector!r}")
     train_videos = collect_measurements(train_dirs, spec, settings, cache_dir, echo)
-    selection: list[dict[str, Any]] = []
-    if select_rules:
-        echo("choosing the online rules by cross-validation on the training videos")
-        rules, selection = choose_rules(
-            train_videos, settings, seed=seed, replay_rounds=replay_rounds, log=echo
-        )
-        echo(f"chose {rules.as_dict()}")
-    model, summary = fit_model(
+    model, summary, rules, selection = _fit(
         train_videos,
         settings,
+        rules,
+        select_rules=select_rules,
         grid=grid,
         seed=seed,
-        reference=reference,  # type: ignore[arg-type]  # checked above
+        reference=reference,
         replay_rounds=replay_rounds,
-        log=echo,
-        rules=rules,
-    )
-    scores = summary.cross_validated
-    # One video has no held-out fold: its scores are in-sample and must not read as validated.
-    scored = (
-        f"cross-validated ({summary.folds} folds by video"
-        if summary.folds >= 2
-        else "in-sample (one video: no held-out fold"
-    )
-    echo(
-        f"{scored}, C={summary.C}, gamma={summary.gamma}):"
-        f" precision {_percent(scores.precision)}, recall {_percent(scores.recall)},"
-        f" F1 {_percent(scores.f1)}"
+        echo=echo,
     )
     model.training = {
         "dataset": str(dataset),

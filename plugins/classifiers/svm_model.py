@@ -261,9 +261,8 @@ def _section(path: Path, data: Any, name: str) -> dict[str, Any]:
     return value
 
 
-def load_model(path: str | Path) -> SvmModel:
-    """Read and check a model file; any problem is one :class:`UserError` sentence."""
-    path = Path(path)
+def _read_model_json(path: Path) -> dict[str, Any]:
+    """The file's JSON object, checked to be this format at this version."""
     if not path.is_file():
         raise UserError(f"{path}: no such model file; expected a {FORMAT_NAME} JSON file.")
     try:
@@ -283,6 +282,13 @@ def load_model(path: str | Path) -> SvmModel:
             f"{path}: version is {data.get('version')!r}; expected {FORMAT_VERSION} (retrain or"
             " upgrade trackfw)."
         )
+    return data
+
+
+def load_model(path: str | Path) -> SvmModel:
+    """Read and check a model file; any problem is one :class:`UserError` sentence."""
+    path = Path(path)
+    data = _read_model_json(path)
     scaler, svm, platt = (_section(path, data, name) for name in ("scaler", "svm", "platt"))
     if svm.get("kernel") != "rbf":
         raise UserError(f"{path}: svm.kernel is {svm.get('kernel')!r}; expected 'rbf'.")

@@ -179,7 +179,7 @@ def fit_model(
         The model and the report with cross-validated (out-of-fold) frame scores on the
         ground-truth-reference features.
     """
-    from sklearn.model_selection import GridSearchCV, GroupKFold, cross_val_predict
+    from sklearn.model_selection import GroupKFold, cross_val_predict
 
     say = log or (lambda line: None)
     features, labels, groups = training_set(videos, settings.c_max)
@@ -193,41 +193,20 @@ def fit_model(
     if folds >= 2:
         splitter = GroupKFold(n_splits=folds, shuffle=True, random_state=seed)
         if grid:
-            say(f"grid search over {len(GRID_C) * len(GRID_GAMMA)} settings, {folds} folds")
-            search = GridSearchCV(
-                _pipeline(C, gamma, class_weight),
-                {"svc__C": list(GRID_C), "svc__gamma": list(GRID_GAMMA)},
-                scoring="f1",
-                cv=splitter,
+            C, gamma, grid_rows = _grid_search(
+                (features, labels, groups), splitter, C, gamma, class_weight, say
             )
-            search.fit(features, labels, groups=groups)
-            C, gamma = search.best_params_["svc__C"], search.best_params_["svc__gamma"]
-            for params, score in zip(
-                search.cv_results_["params"], search.cv_results_["mean_test_score"], strict=True
-            ):
-                grid_rows.append(
-                    {"C": params["svc__C"], "gamma": params["svc__gamma"], "f1": float(score)}
-                )
-        truth = (features, labels, groups)
-        for round_number in range(replay_rounds if reference == "replay" else 0):
-            extra_features, extra_labels, extra_groups = _replayed_rows(
+        if reference == "replay":
+            features, labels, groups = _add_replayed_rows(
                 videos,
                 (features, labels, groups),
-                truth,
                 splitter,
-                C,
-                gamma,
+                (C, gamma, class_weight),
                 settings,
                 rules,
-                class_weight,
+                replay_rounds,
+                say,
             )
-            say(
-                f"replay round {round_number + 1} added {len(extra_labels)} frames whose C_t"
-                " differs online"
-            )
-            features = np.concatenate([features, extra_features])
-            labels = np.concatenate([labels, extra_labels])
-            groups = np.concatenate([groups, extra_groups])
         say(f"cross-validating C={C}, gamma={gamma} over {folds} folds grouped by video")
         out_of_fold = cross_val_predict(
             _pipeline(C, gamma, class_weight),
@@ -255,6 +234,72 @@ def fit_model(
     return model, TrainingReport(
         C=float(C), gamma=gamma, folds=folds, cross_validated=scores, grid=grid_rows
     )
+
+
+def _grid_search(
+    rows: tuple[FloatArray, IntArray, IntArray],
+    splitter: Any,
+    C: float,
+    gamma: str | float,
+    class_weight: str | None,
+    say: Callable[[str], None],
+) -> tuple[float, str | float, list[dict[str, Any]]]:
+    """The best C and gamma on ``GRID_C`` x ``GRID_GAMMA`` by grouped cross-validated F1, and
+    every setting's score."""
+    from sklearn.model_selection import GridSearchCV
+
+    features, labels, groups = rows
+    say(f"grid search over {len(GRID_C) * len(GRID_GAMMA)} settings, {splitter.n_splits} folds")
+    search = GridSearchCV(
+        _pipeline(C, gamma, class_weight),
+        {"svc__C": list(GRID_C), "svc__gamma": list(GRID_GAMMA)},
+        scoring="f1",
+        cv=splitter,
+    )
+    search.fit(features, labels, groups=groups)
+    grid_rows = [
+        {"C": params["svc__C"], "gamma": params["svc__gamma"], "f1": float(score)}
+        for params, score in zip(
+            search.cv_results_["params"], search.cv_results_["mean_test_score"], strict=True
+        )
+    ]
+    return search.best_params_["svc__C"], search.best_params_["svc__gamma"], grid_rows
+
+
+def _add_replayed_rows(
+    videos: Sequence[VideoMeasurements],
+    truth: tuple[FloatArray, IntArray, IntArray],
+    splitter: Any,
+    svm: tuple[float, str | float, str | None],
+    settings: FeatureSettings,
+    rules: OnlineRules | None,
+    replay_rounds: int,
+    say: Callable[[str], None],
+) -> tuple[FloatArray, IntArray, IntArray]:
+    """The ground-truth rows grown by ``replay_rounds`` rounds of online replay (see
+    :func:`fit_model`'s ``reference``); ``svm`` is (C, gamma, class_weight)."""
+    features, labels, groups = truth
+    C, gamma, class_weight = svm
+    for round_number in range(replay_rounds):
+        extra_features, extra_labels, extra_groups = _replayed_rows(
+            videos,
+            (features, labels, groups),
+            truth,
+            splitter,
+            C,
+            gamma,
+            settings,
+            rules,
+            class_weight,
+        )
+        say(
+            f"replay round {round_number + 1} added {len(extra_labels)} frames whose C_t"
+            " differs online"
+        )
+        features = np.concatenate([features, extra_features])
+        labels = np.concatenate([labels, extra_labels])
+        groups = np.concatenate([groups, extra_groups])
+    return features, labels, groups
 
 
 def _replayed_rows(

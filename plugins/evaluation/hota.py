@@ -123,6 +123,64 @@ class HotaCounts:
         return self.summary()["HOTA"]
 
 
+def _similarities(
+    sequence: Sequence[FrameObservations],
+    gt_index: dict[int, int],
+    hyp_index: dict[int, int],
+    geometry: Geometry,
+    zero_distance: float | None,
+) -> tuple[FloatArray, FloatArray, FloatArray, list[tuple[IntArray, IntArray, FloatArray]]]:
+    """First pass: per-frame similarities and the global alignment score of every identity pair.
+
+    Returns:
+        Frames per ground-truth identity (G,), per hypothesis identity (H,), the summed
+        normalised similarity of every pair (G, H), and each frame's (rows, columns, similarity).
+    """
+    n_gt, n_hyp = len(gt_index), len(hyp_index)
+    gt_counts = np.zeros(n_gt)
+    hyp_counts = np.zeros(n_hyp)
+    potential = np.zeros((n_gt, n_hyp))
+    prepared: list[tuple[IntArray, IntArray, FloatArray]] = []
+    for observation in sequence:
+        rows = np.fromiter((gt_index[i] for i in observation.gt_ids.tolist()), dtype=np.int64)
+        columns = np.fromiter((hyp_index[i] for i in observation.hyp_ids.tolist()), dtype=np.int64)
+        gt_counts[rows] += 1
+        hyp_counts[columns] += 1
+        similarity = _similarity_from_distances(
+            observation.distances(geometry), geometry, zero_distance
+        )
+        prepared.append((rows, columns, similarity))
+        if similarity.size == 0:
+            continue
+        denominator = similarity.sum(0)[None, :] + similarity.sum(1)[:, None] - similarity
+        normalised = np.zeros_like(similarity)
+        mask = denominator > _EPSILON
+        normalised[mask] = similarity[mask] / denominator[mask]
+        potential[rows[:, None], columns[None, :]] += normalised
+    return gt_counts, hyp_counts, potential, prepared
+
+
+def _matched_pairs(
+    prepared: list[tuple[IntArray, IntArray, FloatArray]], alignment: FloatArray
+) -> tuple[IntArray, IntArray, FloatArray]:
+    """Second pass: one matching per frame; every matched pair's identities and similarity."""
+    pair_gt: list[IntArray] = []
+    pair_hyp: list[IntArray] = []
+    pair_similarity: list[FloatArray] = []
+    for rows, columns, similarity in prepared:
+        if len(rows) == 0 or len(columns) == 0:
+            continue
+        score = alignment[rows[:, None], columns[None, :]] * similarity
+        match_rows, match_columns = linear_sum_assignment(-score)
+        pair_gt.append(rows[match_rows])
+        pair_hyp.append(columns[match_columns])
+        pair_similarity.append(similarity[match_rows, match_columns])
+    gt_of_pair = np.concatenate(pair_gt) if pair_gt else np.zeros(0, dtype=np.int64)
+    hyp_of_pair = np.concatenate(pair_hyp) if pair_hyp else np.zeros(0, dtype=np.int64)
+    similarity_of_pair = np.concatenate(pair_similarity) if pair_similarity else np.zeros(0)
+    return gt_of_pair, hyp_of_pair, similarity_of_pair
+
+
 def hota_counts(
     sequence: Sequence[FrameObservations],
     geometry: Geometry = "point",
@@ -145,27 +203,9 @@ def hota_counts(
     thresholds = ALPHAS.copy() if alphas is None else np.asarray(alphas, dtype=np.float64)
     gt_index, hyp_index = identity_indices(sequence)
     n_gt, n_hyp, n_alpha = len(gt_index), len(hyp_index), len(thresholds)
-    gt_counts = np.zeros(n_gt)
-    hyp_counts = np.zeros(n_hyp)
-    potential = np.zeros((n_gt, n_hyp))
-    prepared = []
-    # First pass: per-frame similarities and the global alignment score of every identity pair.
-    for observation in sequence:
-        rows = np.fromiter((gt_index[i] for i in observation.gt_ids.tolist()), dtype=np.int64)
-        columns = np.fromiter((hyp_index[i] for i in observation.hyp_ids.tolist()), dtype=np.int64)
-        gt_counts[rows] += 1
-        hyp_counts[columns] += 1
-        similarity = _similarity_from_distances(
-            observation.distances(geometry), geometry, zero_distance
-        )
-        prepared.append((rows, columns, similarity))
-        if similarity.size == 0:
-            continue
-        denominator = similarity.sum(0)[None, :] + similarity.sum(1)[:, None] - similarity
-        normalised = np.zeros_like(similarity)
-        mask = denominator > _EPSILON
-        normalised[mask] = similarity[mask] / denominator[mask]
-        potential[rows[:, None], columns[None, :]] += normalised
+    gt_counts, hyp_counts, potential, prepared = _similarities(
+        sequence, gt_index, hyp_index, geometry, zero_distance
+    )
     alignment = potential / np.maximum(1.0, gt_counts[:, None] + hyp_counts[None, :] - potential)
     result = HotaCounts(
         alphas=thresholds,
@@ -177,21 +217,8 @@ def hota_counts(
         association_precision_sum=np.zeros(n_alpha),
         localisation_sum=np.zeros(n_alpha),
     )
-    # Second pass: one matching per frame; the alpha thresholds are applied to all pairs at once.
-    pair_gt: list[IntArray] = []
-    pair_hyp: list[IntArray] = []
-    pair_similarity: list[FloatArray] = []
-    for rows, columns, similarity in prepared:
-        if len(rows) == 0 or len(columns) == 0:
-            continue
-        score = alignment[rows[:, None], columns[None, :]] * similarity
-        match_rows, match_columns = linear_sum_assignment(-score)
-        pair_gt.append(rows[match_rows])
-        pair_hyp.append(columns[match_columns])
-        pair_similarity.append(similarity[match_rows, match_columns])
-    gt_of_pair = np.concatenate(pair_gt) if pair_gt else np.zeros(0, dtype=np.int64)
-    hyp_of_pair = np.concatenate(pair_hyp) if pair_hyp else np.zeros(0, dtype=np.int64)
-    similarity_of_pair = np.concatenate(pair_similarity) if pair_similarity else np.zeros(0)
+    # The alpha thresholds are applied to all matched pairs at once.
+    gt_of_pair, hyp_of_pair, similarity_of_pair = _matched_pairs(prepared, alignment)
     pair_code = gt_of_pair * max(n_hyp, 1) + hyp_of_pair
     total_gt, total_hyp = gt_counts.sum(), hyp_counts.sum()
     for a, alpha in enumerate(thresholds):
