@@ -376,6 +376,117 @@ def batch_matches(correspondence: FloatArray, threshold: float) -> IntArray:
     return np.where((value > threshold) & mutual, best_column, -1).astype(np.int64)
 
 
+def _normalisation(
+    settings: TpsRpmSettings, data_batch: FloatArray, owned: Sequence[TpsRpmTemplate]
+) -> tuple[FloatArray, FloatArray]:
+    """Centre (B, 2) and scale (B,) of each data set: its own (``separate``) or its template's."""
+    batch, columns, _ = data_batch.shape
+    if settings.normalisation == "separate" and columns > 0:
+        centres = data_batch.mean(axis=1)
+        spread = np.sqrt(np.mean(np.sum((data_batch - centres[:, None, :]) ** 2, axis=2), axis=1))
+        scales = np.where(spread > 0, spread, settings.rms_radius) / settings.rms_radius
+    else:
+        centres = np.array([p.centre for p in owned], dtype=np.float64).reshape(batch, 2)
+        scales = np.array([p.scale for p in owned], dtype=np.float64)
+    return centres, scales
+
+
+def _empty_batch(
+    owned: Sequence[TpsRpmTemplate], owner: IntArray, count: int, columns: int
+) -> TpsRpmBatch:
+    """The outputs when there is nothing to match (no template point, data point or data set)."""
+    batch = len(owned)
+    return TpsRpmBatch(
+        correspondence=np.zeros((batch, count, columns)),
+        matched=np.full((batch, count), -1, dtype=np.int64),
+        bending_energy=np.zeros(batch),
+        warped_template=np.array([p.template for p in owned], dtype=np.float64).reshape(
+            batch, count, 2
+        ),
+        nonaffine=np.zeros((batch, count, 3)),
+        affine=np.repeat(np.eye(3)[None], batch, axis=0),
+        data_centre=np.array([p.centre for p in owned], dtype=np.float64).reshape(batch, 2),
+        data_scale=np.array([p.scale for p in owned], dtype=np.float64),
+        owner=owner,
+    )
+
+
+def _anneal_all(
+    templates: Sequence[TpsRpmTemplate], owner: IntArray, normalised: FloatArray
+) -> tuple[FloatArray, FloatArray, list[FloatArray]]:
+    """Final H (B, K, N), targets (B, K, 2) and each data set's temperature schedule: one batched
+    annealing with the code's schedule, else one run per data set (the paper's schedule)."""
+    settings = templates[0].settings
+    batch, columns, _ = normalised.shape
+    count = templates[0].template.shape[0]
+    rng = None if settings.noise_seed is None else np.random.default_rng(settings.noise_seed)
+    order = np.argsort(owner, kind="stable")
+    final_h = np.zeros((batch, count, columns))
+    final_targets = np.zeros((batch, count, 2))
+    schedules: list[FloatArray] = []
+    if settings.schedule == "code":
+        temperatures = code_temperatures(settings)
+        h, targets = _anneal(templates, owner[order], normalised[order], temperatures, rng)
+        final_h[order], final_targets[order] = h, targets
+        schedules = [temperatures] * batch
+    else:
+        for index in range(batch):
+            prepared = templates[int(owner[index])]
+            temperatures = paper_temperatures(
+                prepared.normalised, normalised[index], settings.anneal_rate
+            )
+            h, targets = _anneal(
+                [prepared],
+                np.zeros(1, dtype=np.int64),
+                normalised[index : index + 1],
+                temperatures,
+                rng,
+            )
+            final_h[index], final_targets[index] = h[0], targets[0]
+            schedules.append(temperatures)
+    return final_h, final_targets, schedules
+
+
+def _final_warps(
+    templates: Sequence[TpsRpmTemplate],
+    owner: IntArray,
+    schedules: list[FloatArray],
+    final_targets: FloatArray,
+    centres: FloatArray,
+    scales: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The TPS fitted to the final targets at the last temperature: non-affine (B, K, 3) and
+    affine (B, 3, 3) parameters, bending energy (B,) and the warped template (B, K, 2) in image
+    coordinates."""
+    settings = templates[0].settings
+    batch, count, _ = final_targets.shape
+    nonaffine = np.zeros((batch, count, 3))
+    affine = np.zeros((batch, 3, 3))
+    bending = np.zeros(batch)
+    warped = np.zeros((batch, count, 2))
+    targets_h = np.concatenate([np.ones((batch, count, 1)), final_targets], axis=2)
+    for template_index, prepared in enumerate(templates):
+        members = np.nonzero(owner == template_index)[0]
+        if settings.schedule == "code" and members.size:
+            groups = [members]
+        else:
+            groups = [members[i : i + 1] for i in range(members.size)]
+        for group in groups:
+            if group.size == 0:
+                continue
+            bending_op, affine_op, offset, _, _ = prepared.operators(schedules[int(group[0])])
+            c = bending_op[-1] @ targets_h[group]  # (G, K, 3)
+            d = offset[-1] + affine_op[-1] @ targets_h[group]  # (G, 3, 3)
+            nonaffine[group], affine[group] = c, d
+            warp = c[:, :, 1:3]
+            bending[group] = np.maximum(
+                np.einsum("gki,kj,gji->g", warp, prepared.basis.kernel, warp), 0.0
+            )
+            mapped = homogeneous(prepared.normalised)[None] @ d + prepared.basis.kernel[None] @ c
+            warped[group] = centres[group, None, :] + scales[group, None, None] * mapped[:, :, 1:3]
+    return nonaffine, affine, bending, warped
+
+
 def tps_rpm_multi_batch(
     templates: Sequence[TpsRpmTemplate], owner: IntArray, data_batch: FloatArray
 ) -> TpsRpmBatch:
@@ -403,77 +514,14 @@ def tps_rpm_multi_batch(
     if owner.shape[0] != batch:
         raise ValueError("owner must give one template index per data set")
     owned = [templates[int(i)] for i in owner]
-    if settings.normalisation == "separate" and columns > 0:
-        centres = data_batch.mean(axis=1)
-        spread = np.sqrt(np.mean(np.sum((data_batch - centres[:, None, :]) ** 2, axis=2), axis=1))
-        scales = np.where(spread > 0, spread, settings.rms_radius) / settings.rms_radius
-    else:
-        centres = np.array([p.centre for p in owned], dtype=np.float64).reshape(batch, 2)
-        scales = np.array([p.scale for p in owned], dtype=np.float64)
+    centres, scales = _normalisation(settings, data_batch, owned)
     if count == 0 or columns == 0 or batch == 0:
-        return TpsRpmBatch(
-            correspondence=np.zeros((batch, count, columns)),
-            matched=np.full((batch, count), -1, dtype=np.int64),
-            bending_energy=np.zeros(batch),
-            warped_template=np.array([p.template for p in owned], dtype=np.float64).reshape(
-                batch, count, 2
-            ),
-            nonaffine=np.zeros((batch, count, 3)),
-            affine=np.repeat(np.eye(3)[None], batch, axis=0),
-            data_centre=np.array([p.centre for p in owned], dtype=np.float64).reshape(batch, 2),
-            data_scale=np.array([p.scale for p in owned], dtype=np.float64),
-            owner=owner,
-        )
+        return _empty_batch(owned, owner, count, columns)
     normalised = (data_batch - centres[:, None, :]) / scales[:, None, None]
-    rng = None if settings.noise_seed is None else np.random.default_rng(settings.noise_seed)
-    order = np.argsort(owner, kind="stable")
-    final_h = np.zeros((batch, count, columns))
-    final_targets = np.zeros((batch, count, 2))
-    schedules: list[FloatArray] = []
-    if settings.schedule == "code":
-        temperatures = code_temperatures(settings)
-        h, targets = _anneal(templates, owner[order], normalised[order], temperatures, rng)
-        final_h[order], final_targets[order] = h, targets
-        schedules = [temperatures] * batch
-    else:
-        for index in range(batch):
-            prepared = templates[int(owner[index])]
-            temperatures = paper_temperatures(
-                prepared.normalised, normalised[index], settings.anneal_rate
-            )
-            h, targets = _anneal(
-                [prepared],
-                np.zeros(1, dtype=np.int64),
-                normalised[index : index + 1],
-                temperatures,
-                rng,
-            )
-            final_h[index], final_targets[index] = h[0], targets[0]
-            schedules.append(temperatures)
-    nonaffine = np.zeros((batch, count, 3))
-    affine = np.zeros((batch, 3, 3))
-    bending = np.zeros(batch)
-    warped = np.zeros((batch, count, 2))
-    targets_h = np.concatenate([np.ones((batch, count, 1)), final_targets], axis=2)
-    for template_index, prepared in enumerate(templates):
-        members = np.nonzero(owner == template_index)[0]
-        if settings.schedule == "code" and members.size:
-            groups = [members]
-        else:
-            groups = [members[i : i + 1] for i in range(members.size)]
-        for group in groups:
-            if group.size == 0:
-                continue
-            bending_op, affine_op, offset, _, _ = prepared.operators(schedules[int(group[0])])
-            c = bending_op[-1] @ targets_h[group]  # (G, K, 3)
-            d = offset[-1] + affine_op[-1] @ targets_h[group]  # (G, 3, 3)
-            nonaffine[group], affine[group] = c, d
-            warp = c[:, :, 1:3]
-            bending[group] = np.maximum(
-                np.einsum("gki,kj,gji->g", warp, prepared.basis.kernel, warp), 0.0
-            )
-            mapped = homogeneous(prepared.normalised)[None] @ d + prepared.basis.kernel[None] @ c
-            warped[group] = centres[group, None, :] + scales[group, None, None] * mapped[:, :, 1:3]
+    final_h, final_targets, schedules = _anneal_all(templates, owner, normalised)
+    nonaffine, affine, bending, warped = _final_warps(
+        templates, owner, schedules, final_targets, centres, scales
+    )
     return TpsRpmBatch(
         correspondence=final_h,
         matched=batch_matches(final_h, settings.match_threshold),
