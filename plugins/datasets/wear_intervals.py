@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from trackfw.arrays import FloatArray
 from trackfw.errors import UserError
 from trackfw.formats import body_heads
 from trackfw_plugins.datasets.mot import MotSequence, read_frame
@@ -166,70 +167,111 @@ def make_view(
         output_size: ``(width, height)`` of the output video.
         rng: random generator.
     """
-    width, height = sequence.width, sequence.height
-    out_width, out_height = output_size
-    cover = max(out_width / width, out_height / height)
-    swing_in, swing_out = _swing_lengths(last - first + 1)
     all_boxes = [boxes for boxes in sequence.boxes.values() if len(boxes)]
     stacked = np.concatenate(all_boxes) if all_boxes else np.zeros((0, 5))
-    if kind == "sky":
-        # The band above (nearly) every head, so no face survives the zoom.
-        top_of_people = float(np.percentile(stacked[:, 2], 5)) if len(stacked) else 0.2 * height
-        band_bottom = int(np.clip(top_of_people, 0.1 * height, 0.3 * height))
-        zoom = max(out_height / band_bottom, 2.5 * cover)
-        half_width = out_width / (2 * zoom)
-        centre = (float(rng.uniform(half_width, width - half_width)), out_height / (2 * zoom))
-        drift = (float(rng.choice([-1, 1]) * rng.uniform(0.2, 0.6)), 0.0)
-        return InfolessView(
-            kind,
-            first,
-            last,
-            swing_in,
-            swing_out,
-            "top",
-            zoom,
-            centre,
-            drift,
-            blur_sigma=0.012 * out_width,
-            brightness=1.0,
-            band=(0, band_bottom),
-        )
-    if kind == "path":
-        bottom_of_people = (
-            float(np.percentile(stacked[:, 2] + stacked[:, 4], 95))
-            if len(stacked)
-            else 0.75 * height
-        )
-        band_top = int(np.clip(bottom_of_people, 0.7 * height, 0.88 * height))
-        band_height = height - band_top
-        zoom = max(out_height / band_height, 2.5 * cover)
-        half_width = out_width / (2 * zoom)
-        centre = (float(rng.uniform(half_width, width - half_width)), band_height / 2)
-        # Forward walking: the ground flows down by 1-2.5 % of the frame height per frame.
-        flow = float(rng.uniform(0.01, 0.025)) * out_height / zoom
-        return InfolessView(
-            kind,
-            first,
-            last,
-            swing_in,
-            swing_out,
-            "bottom",
-            zoom,
-            centre,
-            (0.0, -flow),
-            growth=0.003,
-            blur_sigma=0.008 * out_width,
-            brightness=float(rng.uniform(0.85, 1.0)),
-            band=(band_top, height),
-        )
-    if kind != "group":
+    makers = {"sky": _sky_view, "path": _path_view, "group": _group_view}
+    if kind not in makers:
         raise ValueError(f"unknown interval kind {kind!r}")
+    return makers[kind](_ViewPlace(first, last, sequence, output_size, stacked), rng)
+
+
+@dataclass(frozen=True)
+class _ViewPlace:
+    """Where a view is drawn: the interval (0-based frames), the sequence, the output size
+    ``(width, height)`` and every box of the sequence stacked (n, 5)."""
+
+    first: int
+    last: int
+    sequence: MotSequence
+    output_size: tuple[int, int]
+    stacked: FloatArray
+
+    @property
+    def frame_size(self) -> tuple[int, int]:
+        """``(width, height)`` of the sequence's frames."""
+        return self.sequence.width, self.sequence.height
+
+    @property
+    def cover(self) -> float:
+        """The zoom at which the output is covered by the source frame."""
+        width, height = self.frame_size
+        return max(self.output_size[0] / width, self.output_size[1] / height)
+
+    @property
+    def swing(self) -> tuple[int, int]:
+        """Frames of the swing into and out of the view."""
+        return _swing_lengths(self.last - self.first + 1)
+
+
+def _sky_view(place: _ViewPlace, rng: np.random.Generator) -> InfolessView:
+    """The sky band above the people (``sky``), drifting sideways."""
+    width, height, (out_width, out_height) = *place.frame_size, place.output_size
+    stacked, cover = place.stacked, place.cover
+    # The band above (nearly) every head, so no face survives the zoom.
+    top_of_people = float(np.percentile(stacked[:, 2], 5)) if len(stacked) else 0.2 * height
+    band_bottom = int(np.clip(top_of_people, 0.1 * height, 0.3 * height))
+    zoom = max(out_height / band_bottom, 2.5 * cover)
+    half_width = out_width / (2 * zoom)
+    centre = (float(rng.uniform(half_width, width - half_width)), out_height / (2 * zoom))
+    drift = (float(rng.choice([-1, 1]) * rng.uniform(0.2, 0.6)), 0.0)
+    return InfolessView(
+        "sky",
+        place.first,
+        place.last,
+        *place.swing,
+        "top",
+        zoom,
+        centre,
+        drift,
+        blur_sigma=0.012 * out_width,
+        brightness=1.0,
+        band=(0, band_bottom),
+    )
+
+
+def _path_view(place: _ViewPlace, rng: np.random.Generator) -> InfolessView:
+    """The ground band below the people (``path``), flowing down as when walking forwards."""
+    width, height = place.frame_size
+    out_width, out_height = place.output_size
+    bottom_of_people = (
+        float(np.percentile(place.stacked[:, 2] + place.stacked[:, 4], 95))
+        if len(place.stacked)
+        else 0.75 * height
+    )
+    band_top = int(np.clip(bottom_of_people, 0.7 * height, 0.88 * height))
+    band_height = height - band_top
+    zoom = max(out_height / band_height, 2.5 * place.cover)
+    half_width = out_width / (2 * zoom)
+    centre = (float(rng.uniform(half_width, width - half_width)), band_height / 2)
+    # Forward walking: the ground flows down by 1-2.5 % of the frame height per frame.
+    flow = float(rng.uniform(0.01, 0.025)) * out_height / zoom
+    return InfolessView(
+        "path",
+        place.first,
+        place.last,
+        *place.swing,
+        "bottom",
+        zoom,
+        centre,
+        (0.0, -flow),
+        growth=0.003,
+        blur_sigma=0.008 * out_width,
+        brightness=float(rng.uniform(0.85, 1.0)),
+        band=(band_top, height),
+    )
+
+
+def _group_view(place: _ViewPlace, rng: np.random.Generator) -> InfolessView:
+    """A close-up of another moment of the sequence (``group``), at least the interval's length
+    away in time so its people are elsewhere."""
+    first, last, sequence = place.first, place.last, place.sequence
+    width, height = place.frame_size
     length = last - first + 1
     lowest, highest = -first, sequence.n_frames - 1 - last
     separation = min(length, max(-lowest, highest))
     offsets = [o for o in range(lowest, highest + 1) if abs(o) >= separation]
     time_offset = int(rng.choice(offsets)) if offsets else 0
-    zoom = cover * float(rng.uniform(1.15, 1.5))
+    zoom = place.cover * float(rng.uniform(1.15, 1.5))
     heads = body_heads(sequence.boxes_at(first + time_offset)[:, 1:])
     if len(heads):
         person = heads[int(rng.integers(len(heads)))]
@@ -237,11 +279,10 @@ def make_view(
     else:
         centre = (width / 2, height / 2)
     view = InfolessView(
-        kind,
-        first,
-        last,
-        swing_in,
-        swing_out,
+        "group",
+        place.first,
+        place.last,
+        *place.swing,
         str(rng.choice(["left", "right"])),
         zoom,
         centre,
@@ -250,7 +291,7 @@ def make_view(
         brightness=float(rng.uniform(0.85, 1.1)),
         time_offset=time_offset,
     )
-    view.centre = _clamped_centre(view, 0, sequence, output_size)
+    view.centre = _clamped_centre(view, 0, sequence, place.output_size)
     return view
 
 
