@@ -10,6 +10,16 @@ import pytest
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO_ROOT.parent / "shared" / "data"
 
+#: The smallest segment pipeline: oracle detections and decisions, Kalman tracking, assignment.
+ORACLE_PIPELINE = """\
+name: oracle
+stages:
+  detector:    {type: oracle}
+  classifier:  {type: oracle}
+  tracker:     {type: kalman}
+  gap_matcher: {type: assignment}
+"""
+
 
 @pytest.fixture(scope="session")
 def shared_data() -> Path:

@@ -50,7 +50,7 @@ def pipeline_file(tmp_path: Path) -> Callable[[str], Path]:
     return write
 
 
-class _PixelDetector(Detector):
+class PixelCentreDetector(Detector):
     """Test detector that reads pixels: one detection at the image centre."""
 
     name = "pixel-centre"
@@ -62,16 +62,21 @@ class _PixelDetector(Detector):
         return Detections.from_points([[width / 2, height / 2]])
 
 
-def pixel_registry() -> Registry:
-    """The installed plugins plus the test detector ``pixel-centre``."""
-    module = ModuleType("pixel_centre_plugin")
+def registry_with(name: str, detector: type[Detector]) -> Registry:
+    """The installed plugins plus one test detector, registered by the plugin ``name``."""
+    module = ModuleType(f"{name}_plugin")
 
     @hookimpl
     def trackfw_register_stages(registry: Registry) -> None:
-        registry.add_detector(_PixelDetector)
+        registry.add_detector(detector)
 
     module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
-    return load_registry(extra_modules=[("pixel-centre", module)])
+    return load_registry(extra_modules=[(name, module)])
+
+
+def pixel_registry() -> Registry:
+    """The installed plugins plus the test detector ``pixel-centre``."""
+    return registry_with("pixel-centre", PixelCentreDetector)
 
 
 PIXEL_PIPELINE = textwrap.dedent(

@@ -5,7 +5,6 @@ from __future__ import annotations
 import csv
 import json
 from pathlib import Path
-from types import ModuleType
 
 import cv2
 import numpy as np
@@ -14,11 +13,11 @@ import pytest
 from trackfw.dataset import load_video
 from trackfw.engine import Engine
 from trackfw.formats.run import write_run
-from trackfw.hookspecs import hookimpl
 from trackfw.pipeline import load_pipeline
 from trackfw.records import Detections, FrameData
 from trackfw.registry import Registry, load_registry
-from trackfw.stages import Detector
+
+from .conftest import PixelCentreDetector, registry_with
 
 
 def _run(
@@ -98,32 +97,20 @@ def test_targets_outside_the_image_are_not_reported(tmp_path: Path, pipeline_fil
     assert per_frame[0] == 3 and per_frame[1] < 3
 
 
-class PixelMeanDetector(Detector):
+class PixelMeanDetector(PixelCentreDetector):
     """Test detector that needs pixels: one detection at the image centre if the frame is not black."""
 
     name = "pixel-mean"
-    uses_pixels = True
 
     def detect(self, frame: FrameData) -> Detections:
+        centre = super().detect(frame)
         assert frame.image is not None
-        height, width = frame.image.shape[:2]
-        return Detections.from_points([[width / 2, height / 2]] if frame.image.mean() > 1 else [])
-
-
-def _pixel_plugin() -> ModuleType:
-    module = ModuleType("pixel_plugin")
-
-    @hookimpl
-    def trackfw_register_stages(registry: Registry) -> None:
-        registry.add_detector(PixelMeanDetector)
-
-    module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
-    return module
+        return centre if frame.image.mean() > 1 else Detections.from_points([])
 
 
 def _pixel_mean_pipeline(pipeline_file) -> tuple[Path, Registry]:
     """The test pipeline with the ``pixel-mean`` detector, and a registry that has it."""
-    registry = load_registry(extra_modules=[("pixel", _pixel_plugin())])
+    registry = registry_with("pixel", PixelMeanDetector)
     text = pipeline_file().read_text()
     text = text.replace("detector:    {type: oracle}", "detector:    {type: pixel-mean}")
     return pipeline_file(text, "pixel.yaml"), registry

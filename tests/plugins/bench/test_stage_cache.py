@@ -12,8 +12,9 @@ import numpy as np
 from trackfw.dataset import load_video
 from trackfw.engine import Engine
 from trackfw.formats.run import frames_text, gaps_data, tracks_text
-from trackfw.pipeline import validate_pipeline
-from trackfw.registry import load_registry
+from trackfw.pipeline import Pipeline, validate_pipeline
+from trackfw.records import VideoContext
+from trackfw.registry import Registry, load_registry
 from trackfw.stage_cache import StageCache, cache_key
 
 PIPELINE: dict[str, Any] = {
@@ -32,14 +33,21 @@ def _without_timings(text: str) -> list[list[str]]:
     return [line.split(",")[:-2] for line in text.splitlines()]
 
 
-def test_a_hit_replays_detector_and_classifier_exactly(
-    bench_plugin, small_dataset, tmp_path: Path
-) -> None:
+def _one_video_and_a_cache(
+    small_dataset: Any, tmp_path: Path
+) -> tuple[Registry, Pipeline, VideoContext, StageCache]:
+    """The registry, the test pipeline, one video of the small dataset and an empty cache."""
     registry = load_registry()
     pipeline = validate_pipeline(PIPELINE, registry)
     video = load_video(small_dataset(count=1) / "v0")
+    return registry, pipeline, video, StageCache(tmp_path / "cache")
+
+
+def test_a_hit_replays_detector_and_classifier_exactly(
+    bench_plugin, small_dataset, tmp_path: Path
+) -> None:
+    registry, pipeline, video, cache = _one_video_and_a_cache(small_dataset, tmp_path)
     counter = sys.modules["trackfw_benchtest"]
-    cache = StageCache(tmp_path / "cache")
     engine = Engine(pipeline, registry)
 
     computed = engine.run_video(video, cache=cache)
@@ -84,10 +92,7 @@ def test_the_key_follows_detector_classifier_and_video_only(
 def test_a_damaged_cache_file_is_a_miss_and_is_rewritten(
     bench_plugin, small_dataset, tmp_path: Path
 ) -> None:
-    registry = load_registry()
-    pipeline = validate_pipeline(PIPELINE, registry)
-    video = load_video(small_dataset(count=1) / "v0")
-    cache = StageCache(tmp_path / "cache")
+    registry, pipeline, video, cache = _one_video_and_a_cache(small_dataset, tmp_path)
     Engine(pipeline, registry).run_video(video, cache=cache)
     (path,) = (tmp_path / "cache").glob("*.npz")
     # Stored without pickled objects: it loads with allow_pickle=False.

@@ -13,6 +13,8 @@ from typer.testing import CliRunner
 from trackfw.errors import UserError
 from trackfw_plugins.evaluation.cli import register
 
+from ...conftest import ORACLE_PIPELINE
+
 
 def _app() -> typer.Typer:
     app = typer.Typer()
@@ -60,16 +62,6 @@ def test_eval_defaults_to_the_runs_folder_and_raises_user_errors(
     )
     assert isinstance(bad.exception, UserError)
     assert "no such folder" in str(bad.exception)
-
-
-ORACLE_PIPELINE = """\
-name: oracle
-stages:
-  detector:    {type: oracle}
-  classifier:  {type: oracle}
-  tracker:     {type: kalman}
-  gap_matcher: {type: assignment}
-"""
 
 
 def _eval_main(dataset: Path, runs: Path) -> int:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import pytest
 
@@ -18,23 +17,11 @@ from trackfw_plugins.maths.gog import (
 )
 from trackfw_plugins.maths.reid_crop import reid_distance_matrix
 
-
-def _person(rng: np.random.Generator) -> np.ndarray:
-    background = cv2.resize(
-        rng.integers(60, 200, size=(8, 4, 3), dtype=np.uint8), (48, 128),
-        interpolation=cv2.INTER_LINEAR,
-    )
-    image = background.copy()
-    shirt, trousers = rng.integers(0, 256, size=(2, 3))
-    image[20:70, 8:40] = shirt
-    image[70:125, 12:36] = trousers
-    period = int(rng.integers(3, 9))
-    image[20:70:period, 8:40] = (shirt // 2).astype(np.uint8)
-    return image
+from .conftest import person_image
 
 
 def test_dimensions() -> None:
-    image = _person(np.random.default_rng(0))[..., ::-1].copy()
+    image = person_image(np.random.default_rng(0), head=False)[..., ::-1].copy()
     assert gog_colour_descriptor(image, "rgb").shape == (7567,)
     assert gog_colour_descriptor(image, "nrng").shape == (4921,)
     assert sum(gog_block_sizes()) == 27622
@@ -101,7 +88,7 @@ def test_patch_gaussians_match_direct_statistics() -> None:
 def query_and_gallery() -> tuple[np.ndarray, np.ndarray]:
     """Raw GOG of 4 people and of a shifted, noised copy of each (computed once)."""
     rng = np.random.default_rng(9)
-    people = [_person(rng) for _ in range(4)]
+    people = [person_image(rng, head=False) for _ in range(4)]
     query = np.stack([gog_descriptor(person) for person in people])
     gallery = []
     for person in people:

@@ -18,22 +18,7 @@ from trackfw_plugins.maths.lomo import (
 )
 from trackfw_plugins.maths.reid_crop import reid_distance_matrix
 
-
-def _person(rng: np.random.Generator, shape: tuple[int, int] = (128, 48)) -> np.ndarray:
-    """A crude 128×48 "person": textured background, shirt and trousers with stripes."""
-    height, width = shape
-    background = cv2.resize(
-        rng.integers(60, 200, size=(8, 4, 3), dtype=np.uint8), (width, height),
-        interpolation=cv2.INTER_LINEAR,
-    )
-    image = background.copy()
-    shirt, trousers = rng.integers(0, 256, size=(2, 3))
-    image[20:70, 8:40] = shirt
-    image[70:125, 12:36] = trousers
-    period = int(rng.integers(3, 9))
-    image[20:70:period, 8:40] = (shirt // 2).astype(np.uint8)
-    image[4:20, 16:32] = (150, 170, 210)
-    return image
+from .conftest import person_image
 
 
 def _noisy_shift(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -43,7 +28,7 @@ def _noisy_shift(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 
 def test_dimensions_and_block_norms() -> None:
-    image = _person(np.random.default_rng(0))
+    image = person_image(np.random.default_rng(0))
     descriptor = lomo_descriptor(image)
     assert descriptor.shape == (26960,)
     assert np.linalg.norm(descriptor[:20480]) == pytest.approx(1.0)
@@ -54,7 +39,7 @@ def test_dimensions_and_block_norms() -> None:
 
 
 def test_pyramid_gives_40_rows_per_code_map() -> None:
-    image = _person(np.random.default_rng(1))
+    image = person_image(np.random.default_rng(1))
     hsv_block = lomo_hsv_block(image[..., ::-1].copy())
     assert hsv_block.shape == (40 * 512,)
     rows = hsv_block.reshape(40, 512)
@@ -90,7 +75,7 @@ def test_rgb_to_hsv_agrees_with_opencv() -> None:
 
 
 def test_retinex_output_range() -> None:
-    output = retinex(_person(np.random.default_rng(2))[..., ::-1].copy())
+    output = retinex(person_image(np.random.default_rng(2))[..., ::-1].copy())
     assert output.shape == (128, 48, 3)
     assert output.min() >= 0.0 and output.max() <= 255.0
     assert output.max() > 200.0  # the balance stretches each channel
@@ -98,7 +83,7 @@ def test_retinex_output_range() -> None:
 
 def test_same_person_ranks_first() -> None:
     rng = np.random.default_rng(7)
-    people = [_person(rng) for _ in range(6)]
+    people = [person_image(rng) for _ in range(6)]
     query = np.stack([lomo_descriptor(person) for person in people[:3]])
     gallery_images = [_noisy_shift(person, rng) for person in people]
     gallery = np.stack([lomo_descriptor(image) for image in gallery_images])

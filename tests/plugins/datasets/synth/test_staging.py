@@ -13,15 +13,9 @@ import pytest
 
 from trackfw.cli import main
 
+from ....conftest import ORACLE_PIPELINE
+
 SYNTH = ["dataset", "synth", "--size", "160x90", "--videos", "1", "--jobs", "1", "--seed", "3"]
-PIPELINE = """\
-name: oracle
-stages:
-  detector:    {type: oracle}
-  classifier:  {type: oracle}
-  tracker:     {type: kalman}
-  gap_matcher: {type: assignment}
-"""
 
 
 def _staging(out: Path) -> list[Path]:
@@ -61,7 +55,7 @@ def test_killed_synth_leaves_a_dataset_that_check_and_run_accept_and_force_clean
     capsys.readouterr()
     assert main(["dataset", "check", str(out)]) == 0, capsys.readouterr().err
     pipeline = tmp_path / "oracle.yaml"
-    pipeline.write_text(PIPELINE)
+    pipeline.write_text(ORACLE_PIPELINE)
     runs = tmp_path / "runs"
     assert main(["run", str(pipeline), "--input", str(out), "--output", str(runs), "-q"]) == 0
     assert [child.name for child in runs.iterdir()] == ["synth001-plaza"]
