@@ -113,29 +113,61 @@ def track_bytetrack(
     Returns:
         Confirmed tracks, observed points only, numbered in order of birth.
     """
-    params = params or ByteTrackParams()
-    buffer_frames = max(1, round(params.lost_buffer_s * fps))
-    live = _Live(
-        KalmanBank.start(
-            np.zeros((0, 2)), params.initial_variance, params.process_noise, params.position_noise
-        )
-    )
+    run = _ByteTrackRun(detections, fps, params or ByteTrackParams())
     bounds = detections.frame_bounds()
-    all_boxes = detections.boxes()
-    out_ids: list[int] = []
-    out_rows: list[int] = []
-    pending: dict[int, int] = {}  # birth row of tracks not yet confirmed
-    next_id = 1
-    seen_detections = False
     for frame in range(detections.n_frames):
-        rows = np.arange(bounds[frame], bounds[frame + 1])
-        scores = detections.scores[rows]
+        run.step(frame, np.arange(bounds[frame], bounds[frame + 1]))
+    if not run.out_rows:
+        return Tracks.empty()
+    taken = np.array(run.out_rows, dtype=np.int64)
+    return Tracks(
+        np.array(run.out_ids),
+        detections.frames[taken],
+        detections.points[taken],
+        np.ones(len(taken), dtype=bool),
+    ).renumbered()
+
+
+class _ByteTrackRun:
+    """ByteTrack through one video: the live tracks and the (track id, detection row) reported."""
+
+    def __init__(self, detections: VideoDetections, fps: float, params: ByteTrackParams) -> None:
+        self.detections = detections
+        self.params = params
+        self.buffer_frames = max(1, round(params.lost_buffer_s * fps))
+        self.live = _Live(
+            KalmanBank.start(
+                np.zeros((0, 2)),
+                params.initial_variance,
+                params.process_noise,
+                params.position_noise,
+            )
+        )
+        self.all_boxes = detections.boxes()
+        self.out_ids: list[int] = []
+        self.out_rows: list[int] = []
+        self.pending: dict[int, int] = {}  # birth row of tracks not yet confirmed
+        self.next_id = 1
+        self.seen_detections = False
+
+    def step(self, frame: int, rows: IntArray) -> None:
+        """One frame: predict, the three associations, updates, removals and births."""
+        live, params = self.live, self.params
+        scores = self.detections.scores[rows]
         live.bank.predict()
         high = rows[scores >= params.high_threshold]
         low = rows[(scores >= params.low_threshold) & (scores < params.high_threshold)]
+        matched_row, free_high = self._associate_stages(high, low)
+        self._update_matched(frame, matched_row)
+        self._drop_unmatched(frame, matched_row)
+        self._start_tracks(frame, free_high)
+        self.seen_detections = self.seen_detections or len(rows) > 0
+
+    def _associate_stages(self, high: IntArray, low: IntArray) -> tuple[IntArray, IntArray]:
+        """The detection row matched to each live track (-1: none) and the high rows left."""
+        live, params, all_boxes = self.live, self.params, self.all_boxes
         predicted = live.boxes()
-        count = len(live.ids)
-        matched_row = np.full(count, -1, dtype=np.int64)
+        matched_row = np.full(len(live.ids), -1, dtype=np.int64)
         confirmed = np.array(live.confirmed, dtype=bool)
         tracked = np.array(live.tracked, dtype=bool)
         # Stage 1: confirmed tracks (tracked and lost) against high detections.
@@ -160,6 +192,12 @@ def track_bytetrack(
             params.unconfirmed_iou,
             matched_row,
         )
+        return matched_row, free_high
+
+    def _update_matched(self, frame: int, matched_row: IntArray) -> None:
+        """Correct the matched tracks and report them (a newly confirmed one with its birth
+        detection too when ``report_birth``)."""
+        live, detections = self.live, self.detections
         hit = np.flatnonzero(matched_row >= 0)
         live.bank.correct(hit, detections.points[matched_row[hit]])
         for index in hit.tolist():
@@ -167,55 +205,56 @@ def track_bytetrack(
             track_id = live.ids[index]
             if not live.confirmed[index]:
                 live.confirmed[index] = True
-                birth = pending.pop(track_id)
-                if params.report_birth:
-                    out_ids.append(track_id)
-                    out_rows.append(birth)
+                birth = self.pending.pop(track_id)
+                if self.params.report_birth:
+                    self.out_ids.append(track_id)
+                    self.out_rows.append(birth)
             live.sizes[index] = detections.sizes[row]
             live.tracked[index] = True
             live.last_seen[index] = frame
-            out_ids.append(track_id)
-            out_rows.append(row)
+            self.out_ids.append(track_id)
+            self.out_rows.append(row)
+
+    def _drop_unmatched(self, frame: int, matched_row: IntArray) -> None:
+        """Unmatched tracks become lost; unconfirmed ones and those lost too long go."""
+        live = self.live
+        count = len(matched_row)
         survivors = [
             index
             for index in range(count)
             if matched_row[index] >= 0
-            or (live.confirmed[index] and frame - live.last_seen[index] <= buffer_frames)
+            or (live.confirmed[index] and frame - live.last_seen[index] <= self.buffer_frames)
         ]
         for index in range(count):
             if matched_row[index] < 0:
                 live.tracked[index] = False
             if matched_row[index] < 0 and not live.confirmed[index]:
-                pending.pop(live.ids[index], None)
+                self.pending.pop(live.ids[index], None)
         live.keep(np.array(survivors, dtype=np.int64))
-        births = free_high[detections.scores[free_high] >= params.activation_threshold]
-        if len(births):
-            first = params.confirm_first_frame and not seen_detections
-            born = KalmanBank.start(detections.points[births], params.initial_variance)
-            live.bank.means = np.vstack([live.bank.means, born.means])
-            live.bank.covariances = np.concatenate([live.bank.covariances, born.covariances])
-            for row in births.tolist():
-                live.ids.append(next_id)
-                live.sizes.append(detections.sizes[row])
-                live.confirmed.append(first)
-                live.tracked.append(True)
-                live.last_seen.append(frame)
-                if first:
-                    out_ids.append(next_id)
-                    out_rows.append(row)
-                else:
-                    pending[next_id] = row
-                next_id += 1
-        seen_detections = seen_detections or len(rows) > 0
-    if not out_rows:
-        return Tracks.empty()
-    taken = np.array(out_rows, dtype=np.int64)
-    return Tracks(
-        np.array(out_ids),
-        detections.frames[taken],
-        detections.points[taken],
-        np.ones(len(taken), dtype=bool),
-    ).renumbered()
+
+    def _start_tracks(self, frame: int, free_high: IntArray) -> None:
+        """Free high detections above the activation score start tracks (confirmed at once on
+        the first frame with detections when ``confirm_first_frame``)."""
+        live, detections = self.live, self.detections
+        births = free_high[detections.scores[free_high] >= self.params.activation_threshold]
+        if not len(births):
+            return
+        first = self.params.confirm_first_frame and not self.seen_detections
+        born = KalmanBank.start(detections.points[births], self.params.initial_variance)
+        live.bank.means = np.vstack([live.bank.means, born.means])
+        live.bank.covariances = np.concatenate([live.bank.covariances, born.covariances])
+        for row in births.tolist():
+            live.ids.append(self.next_id)
+            live.sizes.append(detections.sizes[row])
+            live.confirmed.append(first)
+            live.tracked.append(True)
+            live.last_seen.append(frame)
+            if first:
+                self.out_ids.append(self.next_id)
+                self.out_rows.append(row)
+            else:
+                self.pending[self.next_id] = row
+            self.next_id += 1
 
 
 def _associate(

@@ -45,6 +45,8 @@ See ``docs/algorithms/batch-trackers.md#gtcsa-like``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 from pydantic import Field
 
@@ -242,6 +244,34 @@ def _gated_match(
     free[rows[assignment[taken]]] = False
 
 
+@dataclass
+class _Reported:
+    """The rows reported so far, in pieces: ids, frames, points ``(n, 2)``, observed flags."""
+
+    ids: list[IntArray] = field(default_factory=list)
+    frames: list[IntArray] = field(default_factory=list)
+    points: list[FloatArray] = field(default_factory=list)
+    observed: list[BoolArray] = field(default_factory=list)
+
+    def add(self, ids: IntArray, frames: IntArray, points: FloatArray, observed: bool) -> None:
+        """Report ``points`` of tracks ``ids`` at ``frames``, all observed or all filled in."""
+        self.ids.append(ids)
+        self.frames.append(frames)
+        self.points.append(points)
+        self.observed.append(np.full(len(ids), observed, dtype=bool))
+
+    def tracks(self) -> Tracks:
+        """Everything reported, as tracks."""
+        if not self.ids:
+            return Tracks.empty()
+        return Tracks(
+            np.concatenate(self.ids),
+            np.concatenate(self.frames),
+            np.concatenate(self.points),
+            np.concatenate(self.observed),
+        )
+
+
 def track_gtcsa(
     detections: VideoDetections, height: float, params: GtcsaParams | None = None
 ) -> Tracks:
@@ -262,10 +292,7 @@ def track_gtcsa(
     ids = np.zeros(0, dtype=np.int64)
     misses = np.zeros(0, dtype=np.int64)
     bounds = detections.frame_bounds()
-    out_ids: list[IntArray] = []
-    out_frames: list[IntArray] = []
-    out_points: list[FloatArray] = []
-    out_observed: list[BoolArray] = []
+    reported = _Reported()
     coasted: dict[int, list[tuple[int, FloatArray]]] = {}
     next_id = 1
     for frame in range(detections.n_frames):
@@ -278,14 +305,10 @@ def track_gtcsa(
         for index in hit.tolist():
             # Coasted frames between two matches are reported as filled in.
             for coast_frame, coast_point in coasted.pop(int(ids[index]), []):
-                out_ids.append(ids[index : index + 1])
-                out_frames.append(np.array([coast_frame]))
-                out_points.append(coast_point[None])
-                out_observed.append(np.zeros(1, dtype=bool))
-        out_ids.append(ids[hit])
-        out_frames.append(np.full(len(hit), frame))
-        out_points.append(points[matched[hit]])
-        out_observed.append(np.ones(len(hit), dtype=bool))
+                reported.add(
+                    ids[index : index + 1], np.array([coast_frame]), coast_point[None], False
+                )
+        reported.add(ids[hit], np.full(len(hit), frame), points[matched[hit]], True)
         positions = bank.positions
         for index in np.flatnonzero(matched < 0).tolist():
             coasted.setdefault(int(ids[index]), []).append((frame, positions[index]))
@@ -305,15 +328,5 @@ def track_gtcsa(
             next_id += len(births)
             ids = np.concatenate([ids, new_ids])
             misses = np.concatenate([misses, np.zeros(len(births), dtype=np.int64)])
-            out_ids.append(new_ids)
-            out_frames.append(np.full(len(births), frame))
-            out_points.append(births)
-            out_observed.append(np.ones(len(births), dtype=bool))
-    if not out_ids:
-        return Tracks.empty()
-    return Tracks(
-        np.concatenate(out_ids),
-        np.concatenate(out_frames),
-        np.concatenate(out_points),
-        np.concatenate(out_observed),
-    )
+            reported.add(new_ids, np.full(len(births), frame), births, True)
+    return reported.tracks()

@@ -197,77 +197,15 @@ def _choose_pose(
 
 def plan_video(sequence: MotSequence, settings: WearSettings, seed: int, index: int) -> VideoPlan:
     """Draw the intervals, views, poses and targets of video ``index`` for ``seed``."""
-    from trackfw_plugins.datasets.wear_intervals import WEAR_KINDS, make_view, place_intervals
-
+    # The draws come in one fixed order (intervals, kinds, views, sway, first pose, targets,
+    # then a pose per segment): the same seed gives the same video.
     rng = np.random.default_rng([seed, index, zlib.crc32(sequence.name.encode("utf-8"))])
     output_size = settings.output_size or (sequence.width, sequence.height)
-    source_size = (sequence.width, sequence.height)
-    n_frames = sequence.n_frames
-    n_intervals = settings.n_intervals or max(1, min(6, n_frames // 80))
-    try:
-        spans = place_intervals(
-            n_frames,
-            n_intervals,
-            settings.min_interval,
-            settings.max_interval,
-            settings.min_segment,
-            rng,
-        )
-    except UserError as error:
-        raise UserError(f"{sequence.path}: {error}") from None
-    kinds = [WEAR_KINDS[k % 3] for k in rng.permutation(max(3, n_intervals))][:n_intervals]
-    views = [
-        make_view(kind, a, b, sequence, output_size, rng)
-        for kind, (a, b) in zip(kinds, spans, strict=True)
-    ]
-    sway = _sway(n_frames, sequence.fps, output_size[1], rng)
-
-    def projector(frame: int, points: np.ndarray) -> Callable[[CameraPose], np.ndarray]:
-        def project(base: CameraPose) -> np.ndarray:
-            pan, tilt, roll, log_scale, tx, ty = sway[frame]
-            pose = CameraPose(
-                base.pan + pan,
-                base.tilt + tilt,
-                base.roll + roll,
-                base.scale * math.exp(log_scale),
-                tx,
-                ty,
-            )
-            homography = pose_homography(pose, source_size, output_size, settings.horizontal_fov)
-            return transform_points(homography, points)
-
-        return project
-
-    first_boxes = sequence.boxes_at(0)
-    first_heads = body_head_points(first_boxes[:, 1:])
-    in_source = _inside(first_heads, source_size)
-    if not in_source.any():
-        raise UserError(
-            f"{sequence.path}: frame 1 has no ground-truth person inside the image; expected"
-            " the people of interest there."
-        )
-    required = min(settings.min_targets, int(in_source.sum()))
-    poses = [
-        _choose_pose(
-            rng, settings, None, first_heads, required, projector(0, first_heads), output_size
-        )
-    ]
-    projected = projector(0, first_heads)(poses[0])
-    visible = np.flatnonzero(_inside(projected, output_size))
-    if len(visible) == 0:
-        raise UserError(
-            f"{sequence.path}: no camera pose keeps a person of frame 1 in view; expected"
-            " people well inside the first frame."
-        )
-    wanted = int(rng.integers(settings.min_targets, settings.max_targets + 1))
-    if settings.n_targets is not None:
-        # Drawn all the same, so that the rest of the video is what it is without --targets.
-        wanted = settings.n_targets
-    anchor = projected[rng.choice(visible)]
-    nearest = visible[
-        np.argsort(np.linalg.norm(projected[visible] - anchor, axis=1), kind="stable")
-    ]
-    targets = sorted(int(first_boxes[i, 0]) for i in nearest[: min(wanted, len(nearest))])
+    views = _draw_views(sequence, settings, output_size, rng)
+    sway = _sway(sequence.n_frames, sequence.fps, output_size[1], rng)
+    projector = _projector(sway, (sequence.width, sequence.height), output_size, settings)
+    first_pose, targets = _first_pose_and_targets(sequence, settings, projector, output_size, rng)
+    poses = [first_pose]
     for view in views:
         after = view.last + 1
         boxes = sequence.boxes_at(after)
@@ -291,11 +229,109 @@ def plan_video(sequence: MotSequence, settings: WearSettings, seed: int, index: 
         targets=targets,
         group_id_offset=max(100000, 10 ** len(str(max_id))),
     )
-    plan.frame_view = [-1] * n_frames
+    plan.frame_view = [-1] * sequence.n_frames
     for number, view in enumerate(views):
         for frame in range(view.first, view.last + 1):
             plan.frame_view[frame] = number
     return plan
+
+
+def _draw_views(
+    sequence: MotSequence,
+    settings: WearSettings,
+    output_size: tuple[int, int],
+    rng: np.random.Generator,
+) -> list[InfolessView]:
+    """The info-less intervals of the video, each with its kind and view."""
+    from trackfw_plugins.datasets.wear_intervals import WEAR_KINDS, make_view, place_intervals
+
+    n_frames = sequence.n_frames
+    n_intervals = settings.n_intervals or max(1, min(6, n_frames // 80))
+    try:
+        spans = place_intervals(
+            n_frames,
+            n_intervals,
+            settings.min_interval,
+            settings.max_interval,
+            settings.min_segment,
+            rng,
+        )
+    except UserError as error:
+        raise UserError(f"{sequence.path}: {error}") from None
+    kinds = [WEAR_KINDS[k % 3] for k in rng.permutation(max(3, n_intervals))][:n_intervals]
+    return [
+        make_view(kind, a, b, sequence, output_size, rng)
+        for kind, (a, b) in zip(kinds, spans, strict=True)
+    ]
+
+
+Projector = Callable[[int, np.ndarray], Callable[[CameraPose], np.ndarray]]
+
+
+def _projector(
+    sway: np.ndarray,
+    source_size: tuple[int, int],
+    output_size: tuple[int, int],
+    settings: WearSettings,
+) -> Projector:
+    """``projector(frame, points)(pose)``: the source points seen by the camera at ``pose`` plus
+    the frame's sway, in output pixels."""
+
+    def projector(frame: int, points: np.ndarray) -> Callable[[CameraPose], np.ndarray]:
+        def project(base: CameraPose) -> np.ndarray:
+            pan, tilt, roll, log_scale, tx, ty = sway[frame]
+            pose = CameraPose(
+                base.pan + pan,
+                base.tilt + tilt,
+                base.roll + roll,
+                base.scale * math.exp(log_scale),
+                tx,
+                ty,
+            )
+            homography = pose_homography(pose, source_size, output_size, settings.horizontal_fov)
+            return transform_points(homography, points)
+
+        return project
+
+    return projector
+
+
+def _first_pose_and_targets(
+    sequence: MotSequence,
+    settings: WearSettings,
+    projector: Projector,
+    output_size: tuple[int, int],
+    rng: np.random.Generator,
+) -> tuple[CameraPose, list[int]]:
+    """The camera pose of frame 1 and the target ids: the people in view nearest a random one."""
+    first_boxes = sequence.boxes_at(0)
+    first_heads = body_head_points(first_boxes[:, 1:])
+    in_source = _inside(first_heads, (sequence.width, sequence.height))
+    if not in_source.any():
+        raise UserError(
+            f"{sequence.path}: frame 1 has no ground-truth person inside the image; expected"
+            " the people of interest there."
+        )
+    required = min(settings.min_targets, int(in_source.sum()))
+    pose = _choose_pose(
+        rng, settings, None, first_heads, required, projector(0, first_heads), output_size
+    )
+    projected = projector(0, first_heads)(pose)
+    visible = np.flatnonzero(_inside(projected, output_size))
+    if len(visible) == 0:
+        raise UserError(
+            f"{sequence.path}: no camera pose keeps a person of frame 1 in view; expected"
+            " people well inside the first frame."
+        )
+    wanted = int(rng.integers(settings.min_targets, settings.max_targets + 1))
+    if settings.n_targets is not None:
+        # Drawn all the same, so that the rest of the video is what it is without --targets.
+        wanted = settings.n_targets
+    anchor = projected[rng.choice(visible)]
+    nearest = visible[
+        np.argsort(np.linalg.norm(projected[visible] - anchor, axis=1), kind="stable")
+    ]
+    return pose, sorted(int(first_boxes[i, 0]) for i in nearest[: min(wanted, len(nearest))])
 
 
 # ------------------------------------------------------------------------------------ rendering
