@@ -114,20 +114,8 @@ def test_broken_plugin_is_reported_and_does_not_stop_the_cli(
 
     video = make_points_video(tmp_path / "v", n_frames=20, intervals=[])
     pipeline = REPO / "pipelines" / "kalman1-tr-oracle.yaml"
-    assert (
-        main(
-            [
-                "run",
-                str(pipeline),
-                "--input",
-                str(video),
-                "--output",
-                str(tmp_path / "o"),
-                "--quiet",
-            ]
-        )
-        == 0
-    )
+    output = tmp_path / "o"
+    assert main(["run", str(pipeline), "--input", str(video), "--output", str(output), "-q"]) == 0
 
 
 def test_failed_registration_is_rolled_back() -> None:

@@ -174,21 +174,7 @@ def export_onnx(
     """
     model.eval()
     example = torch.zeros(1, 3, input_size, input_size)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(path.name + ".partial")
-    with warnings.catch_warnings():
-        # The TorchScript exporter is deprecated, but the dynamo one needs onnxscript.
-        warnings.simplefilter("ignore", DeprecationWarning)
-        torch.onnx.export(
-            model,
-            (example,),
-            str(temporary),
-            input_names=["crops"],
-            output_names=["logit"],
-            dynamic_axes={"crops": {0: "batch"}, "logit": {0: "batch"}},
-            opset_version=17,
-            dynamo=False,
-        )
+    temporary = _export(model, example, path, {"crops": {0: "batch"}}, {"logit": {0: "batch"}})
     if crop_settings is not None:
         import onnx  # in the train extra, beside torch
 
@@ -200,29 +186,46 @@ def export_onnx(
     temporary.replace(path)
 
 
+def _export(
+    module: nn.Module,
+    example: torch.Tensor,
+    path: Path,
+    inputs: dict[str, dict[int, str]],
+    outputs: dict[str, dict[int, str]],
+) -> Path:
+    """Export ``module`` (opset 17) to ``path`` + ``.partial``, which it returns; ``inputs`` and
+    ``outputs`` name the one input and the one output with their dynamic axes."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(path.name + ".partial")
+    with warnings.catch_warnings():
+        # The TorchScript exporter is deprecated, but the dynamo one needs onnxscript.
+        warnings.simplefilter("ignore", DeprecationWarning)
+        torch.onnx.export(
+            module,
+            (example,),
+            str(temporary),
+            input_names=list(inputs),
+            output_names=list(outputs),
+            dynamic_axes={**inputs, **outputs},
+            opset_version=17,
+            dynamo=False,
+        )
+    return temporary
+
+
 def export_dense_onnx(model: HeadNet, path: Path) -> None:
     """Write the fully convolutional twin of a 32-px ``model`` (see :class:`DenseHeadNet`).
 
     Input ``image`` ``(1, 3, H, W)`` with dynamic H and W, output ``logit_map``.
     """
     dense = DenseHeadNet(model).eval()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(path.name + ".partial")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        torch.onnx.export(
-            dense,
-            (torch.zeros(1, 3, 64, 64),),
-            str(temporary),
-            input_names=["image"],
-            output_names=["logit_map"],
-            dynamic_axes={
-                "image": {2: "height", 3: "width"},
-                "logit_map": {2: "rows", 3: "columns"},
-            },
-            opset_version=17,
-            dynamo=False,
-        )
+    temporary = _export(
+        dense,
+        torch.zeros(1, 3, 64, 64),
+        path,
+        {"image": {2: "height", 3: "width"}},
+        {"logit_map": {2: "rows", 3: "columns"}},
+    )
     temporary.replace(path)
 
 
