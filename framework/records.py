@@ -269,11 +269,15 @@ class Prediction:
         label: short name of the candidate, such as ``"ar2"`` or ``"kalman"``.
         positions: ``(K, 2)`` predicted positions U on frame ``b``.
         diagnostics: JSON-serialisable details (fallbacks per target, ...).
+        gate: None when the candidate keeps frame a's image geometry (where the pattern lies on
+            b is unknown, the paper's assumption); else the candidate is *positioned*: it is in
+            frame-b pixels up to this many pixels (a scene registration, continuity).
     """
 
     label: str
     positions: FloatArray
     diagnostics: dict[str, Any] = field(default_factory=dict)
+    gate: float | None = None
 
 
 @dataclass

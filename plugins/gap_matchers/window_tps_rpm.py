@@ -10,6 +10,7 @@ appearance term and the records.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict
 from typing import Any, Literal
 
@@ -17,19 +18,21 @@ import numpy as np
 from pydantic import Field
 
 from trackfw.arrays import FloatArray, IntArray
-from trackfw.records import NO_MATCH, Detections, GapProblem, GapSolution
+from trackfw.records import NO_MATCH, Detections, GapProblem, GapSolution, Prediction
 from trackfw.stages import GapMatcher, Stage, StageParams
 from trackfw_plugins.maths.appearance import (
     appearance_descriptors,
     appearance_distance_matrix,
     patch_descriptor,
 )
-from trackfw_plugins.maths.candidate_windows import build_windows
+from trackfw_plugins.maths.candidate_windows import WindowSet, build_windows
+from trackfw_plugins.maths.gated_association import associate_gated
 from trackfw_plugins.maths.person_reid import PersonReidEmbedder, body_boxes, detection_rows
 from trackfw_plugins.maths.reid_crop import crop_box
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 from trackfw_plugins.maths.window_association import (
     WindowAssociationParams,
+    WindowAssociationResult,
     associate_candidates,
     select_candidate,
 )
@@ -60,6 +63,12 @@ class WindowTpsRpmParams(StageParams, WindowAssociationParams):
         description="'patch' = square centred on the head (paper); 'body' = the 1.5s x 4s box below a head of "
         "detected size s, resized to 80x80 (ours: clothing tells people apart when heads are small); "
         "'person-reid' = a pretrained deep re-ID embedding of the body crop (ours, for real footage)",
+    )
+    lambda3: float = Field(
+        0.0,
+        ge=0,
+        description="weight of the position evidence E_p (1 for a free candidate, the mean "
+        "distance/gate of a positioned one's pairs); 0 = the paper's cost",
     )
     reid_model: str = Field(
         "0287",
@@ -142,6 +151,47 @@ def appearance_matrix(
     return appearance_distance_matrix(targets, detections)
 
 
+def score_candidates(
+    candidates: Sequence[Prediction],
+    detections: FloatArray,
+    appearance: FloatArray | None,
+    params: WindowAssociationParams,
+    windows: WindowSet | None,
+    lambda3: float = 0.0,
+) -> tuple[list[WindowAssociationResult], list[float]]:
+    """Cost and association of every candidate, in candidate order, and each one's E_p.
+
+    Candidates in frame a's geometry (``gate`` None) search every window with TPS-RPM and have
+    no position evidence (E_p = 1); positioned ones (``gate`` set) are associated inside their
+    gate (docs/algorithms/gap-matchers.md#positioned-candidates). Every cost is
+    ψ + ``lambda3`` · E_p.
+    """
+    free = [index for index, candidate in enumerate(candidates) if candidate.gate is None]
+    results: list[WindowAssociationResult | None] = [None] * len(candidates)
+    evidence = [1.0] * len(candidates)
+    if free:
+        free_results = associate_candidates(
+            [candidates[index].positions for index in free], detections, appearance, params, windows
+        )
+        for index, result in zip(free, free_results, strict=True):
+            result.cost += lambda3
+            results[index] = result
+    for index, candidate in enumerate(candidates):
+        if candidate.gate is None:
+            continue
+        if len(detections) and len(candidate.positions):
+            results[index], evidence[index] = associate_gated(
+                candidate.positions, detections, candidate.gate, appearance, params, lambda3
+            )
+        else:
+            (result,) = associate_candidates(
+                [candidate.positions], detections, appearance, params, windows
+            )
+            result.cost += lambda3
+            results[index] = result
+    return [result for result in results if result is not None], evidence
+
+
 class WindowTpsRpmGapMatcher(GapMatcher[WindowTpsRpmParams]):
     """AR prediction + window-based TPS-RPM matching of the group's spatial pattern (the paper's method)."""
 
@@ -178,12 +228,8 @@ class WindowTpsRpmGapMatcher(GapMatcher[WindowTpsRpmParams]):
             if len(detections) and len(problem.target_ids)
             else None
         )
-        results = associate_candidates(
-            [candidate.positions for candidate in candidates],
-            detections.points,
-            appearance,
-            association,
-            windows,
+        results, evidence = score_candidates(
+            candidates, detections.points, appearance, association, windows, params.lambda3
         )
         best = select_candidate(results)
         result = results[best]
@@ -194,7 +240,9 @@ class WindowTpsRpmGapMatcher(GapMatcher[WindowTpsRpmParams]):
             NO_MATCH,
         )
         per_candidate: dict[str, Any] = {}
-        for candidate, candidate_result in zip(candidates, results, strict=True):
+        for index, (candidate, candidate_result) in enumerate(
+            zip(candidates, results, strict=True)
+        ):
             per_candidate[candidate.label] = {
                 "cost": round(float(candidate_result.cost), 6),
                 "bending": round(float(candidate_result.bending), 6),
@@ -204,6 +252,9 @@ class WindowTpsRpmGapMatcher(GapMatcher[WindowTpsRpmParams]):
                 "counts": asdict(candidate_result.diagnostics),
                 "predictor": candidate.diagnostics,
             }
+            if candidate.gate is not None:
+                per_candidate[candidate.label]["gate_px"] = round(float(candidate.gate), 3)
+                per_candidate[candidate.label]["position_evidence"] = round(evidence[index], 6)
         return GapSolution(
             positions=np.asarray(result.positions, dtype=np.float64),
             matched_detection=matched.astype(np.int64),

@@ -1,0 +1,116 @@
+"""Camera-aware predictor: AR candidates, the same carried through a scene registration, and
+the Kalman continuity candidate.
+
+See docs/algorithms/predictors.md#camera-aware-predictor.
+
+The paper's AR candidates keep frame a's image geometry (the camera change is unknown). Two more
+kinds of candidate say where the pattern lies on frame b, each with a gate:
+
+* ``reg-ar{k}``: AR order k forecast on frame a, mapped to frame b by the camera motion that the
+  static scene of frames a and b shows (:mod:`trackfw_plugins.maths.scene_registration`); absent
+  when the registration fails;
+* ``continuity``: the Kalman prediction, for a camera that barely moved (short or false
+  intervals).
+
+The gap matcher scores every candidate with one cost, so a wrong registration or a moved camera
+simply loses; this predictor never chooses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from pydantic import Field
+
+from trackfw.records import GapProblem, Prediction
+from trackfw.stages import Predictor, StageParams
+from trackfw_plugins.maths.scene_registration import RegistrationSettings, register_scene
+from trackfw_plugins.predictors.ar import ArParams, ArPredictor
+from trackfw_plugins.predictors.kalman import KalmanPredictor
+
+
+class CameraAwareParams(StageParams):
+    """Parameters of the camera-aware predictor (docs/algorithms/predictors.md#parameters-1)."""
+
+    ar: ArParams = Field(
+        default_factory=lambda: ArParams(series="position"),
+        description="the AR predictor's parameters (orders, series, ...)",
+    )
+    free_ar: bool = Field(
+        True, description="offer the AR candidates in frame a's geometry (the paper's)"
+    )
+    registration: bool = Field(
+        True, description="offer the AR candidates mapped through the scene registration"
+    )
+    scene: RegistrationSettings = Field(
+        default_factory=RegistrationSettings, description="scene registration settings"
+    )
+    registration_gate_at_1080: float = Field(
+        100.0, gt=0, description="gate of the registered candidates in pixels at 1080p"
+    )
+    continuity: bool = Field(
+        True, description="offer the Kalman prediction as a positioned candidate"
+    )
+    continuity_gate_at_1080: float = Field(
+        80.0, gt=0, description="gate of the continuity candidate in pixels at 1080p"
+    )
+
+
+class CameraAwarePredictor(Predictor[CameraAwareParams]):
+    """AR candidates, AR through the scene registration a -> b, and Kalman continuity."""
+
+    name = "camera-aware"
+    uses_pixels = True
+
+    def __init__(self, params: CameraAwareParams | None = None) -> None:
+        super().__init__(params)
+        self._ar = ArPredictor(self.params.ar)
+        self._kalman = KalmanPredictor()
+
+    def predict(self, problem: GapProblem) -> Sequence[Prediction]:
+        """The candidates, free ones first (ties go to the paper's AR order).
+
+        Returns:
+            ``ar{k}`` (gate None) when ``free_ar``; ``reg-ar{k}`` (gated, with the registration
+            in ``diagnostics["registration"]``) when the registration succeeds; ``continuity``
+            (gated) when ``continuity``. A failed registration is recorded on the first
+            candidate.
+        """
+        params = self.params
+        scale = problem.video.height / 1080.0
+        forecasts = list(self._ar.predict(problem))
+        candidates = list(forecasts) if params.free_ar else []
+        registration = None
+        if params.registration and problem.frame_a is not None and problem.frame_b is not None:
+            registration = register_scene(
+                problem.frame_a,
+                problem.frame_b,
+                problem.detections_a.boxes if problem.detections_a is not None else None,
+                problem.detections.boxes,
+                params.scene,
+            )
+            if registration.ok:
+                summary = registration.summary()
+                candidates += [
+                    Prediction(
+                        label=f"reg-{forecast.label}",
+                        positions=registration.apply(forecast.positions),
+                        diagnostics={**forecast.diagnostics, "registration": summary},
+                        gate=params.registration_gate_at_1080 * scale,
+                    )
+                    for forecast in forecasts
+                ]
+        if params.continuity:
+            (kalman,) = self._kalman.predict(problem)
+            candidates.append(
+                Prediction(
+                    label="continuity",
+                    positions=kalman.positions,
+                    gate=params.continuity_gate_at_1080 * scale,
+                )
+            )
+        if not candidates:
+            candidates = forecasts
+        if registration is not None and not registration.ok:
+            candidates[0].diagnostics["registration"] = registration.summary()
+        return candidates

@@ -1,0 +1,87 @@
+"""Tests of the camera-aware predictor and of its candidates in the window gap matcher."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from trackfw.records import Detections, GapProblem, Interval, TargetState, VideoContext
+from trackfw_plugins.gap_matchers.window_tps_rpm import WindowTpsRpmGapMatcher, WindowTpsRpmParams
+from trackfw_plugins.predictors.camera_aware import CameraAwareParams, CameraAwarePredictor
+
+
+def _frame(seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    image = cv2.GaussianBlur(rng.integers(0, 255, (480, 640, 3), dtype=np.uint8), (5, 5), 0)
+    for _ in range(80):
+        x, y = (int(v) for v in rng.integers(0, 600, 2))
+        colour = tuple(int(c) for c in rng.integers(0, 255, 3))
+        cv2.rectangle(image, (x, y % 440), (x + 30, y % 440 + 25), colour, -1)
+    return image
+
+
+def _problem(shift: tuple[float, float], scene_moves: bool) -> tuple[GapProblem, np.ndarray]:
+    """Five still targets; the camera pans by ``shift`` (the scene too when ``scene_moves``)."""
+    targets = np.array(
+        [[200.0, 200.0], [260.0, 215.0], [320.0, 190.0], [230.0, 280.0], [300.0, 290.0]]
+    )
+    clutter = np.array([[520.0, 100.0], [560.0, 130.0], [80.0, 400.0], [500.0, 400.0]])
+    moved = targets + shift
+    image_a = _frame(5)
+    matrix = (
+        np.float64([[1, 0, shift[0]], [0, 1, shift[1]]])
+        if scene_moves
+        else np.float64([[1, 0, 0], [0, 1, 0]])
+    )
+    image_b = cv2.warpAffine(image_a, matrix, (640, 480), borderMode=cv2.BORDER_REFLECT)
+    detections = Detections(points=np.vstack([clutter, moved]), scores=np.ones(9))
+    states = [
+        TargetState(target_id=i + 1, position=p, velocity=np.zeros(2))
+        for i, p in enumerate(targets)
+    ]
+    problem = GapProblem(
+        interval=Interval(a=40, b=60),
+        target_ids=np.arange(1, 6, dtype=np.int64),
+        histories=[np.repeat(p[None], 40, axis=0) for p in targets],
+        states=states,
+        detections=detections,
+        frame_a=image_a,
+        frame_b=image_b,
+        video=VideoContext(name="v", path="v", n_frames=100, width=640, height=480),
+    )
+    return problem, np.arange(4, 9)
+
+
+def test_registered_candidates_follow_the_camera() -> None:
+    problem, _ = _problem((60.0, -25.0), scene_moves=True)
+    candidates = CameraAwarePredictor().predict(problem)
+    labels = [candidate.label for candidate in candidates]
+    assert labels == ["ar1", "ar2", "ar3", "reg-ar1", "reg-ar2", "reg-ar3", "continuity"]
+    registered = candidates[3]
+    assert registered.gate is not None and candidates[0].gate is None
+    assert registered.diagnostics["registration"]["ok"]
+    np.testing.assert_allclose(
+        registered.positions, problem.positions_at_a + np.array([60.0, -25.0]), atol=3.0
+    )
+
+
+def test_failed_registration_offers_no_registered_candidate() -> None:
+    problem, _ = _problem((0.0, 0.0), scene_moves=False)
+    problem.frame_b = _frame(9)  # another scene: nothing registers
+    candidates = CameraAwarePredictor().predict(problem)
+    assert not any(candidate.label.startswith("reg-") for candidate in candidates)
+    assert candidates[0].diagnostics["registration"]["ok"] is False
+
+
+def test_gap_matcher_picks_the_registered_candidate_and_records_it() -> None:
+    problem, truth = _problem((60.0, -25.0), scene_moves=True)
+    predictor = CameraAwarePredictor(CameraAwareParams(continuity=False))
+    matcher = WindowTpsRpmGapMatcher(
+        WindowTpsRpmParams(lambda2=0.0, lambda3=1.0), predictor=predictor
+    )
+    solution = matcher.match(problem)
+    assert solution.chosen is not None and solution.chosen.startswith("reg-")
+    assert solution.matched_detection.tolist() == truth.tolist()
+    record = solution.diagnostics["candidates"][solution.chosen]
+    assert record["predictor"]["registration"]["inliers"] >= 15
+    assert record["gate_px"] > 0
