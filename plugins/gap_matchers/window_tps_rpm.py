@@ -25,16 +25,19 @@ from trackfw_plugins.maths.appearance import (
     appearance_distance_matrix,
     patch_descriptor,
 )
-from trackfw_plugins.maths.candidate_windows import WindowSet, build_windows
+from trackfw_plugins.maths.candidate_windows import WindowSet
 from trackfw_plugins.maths.gated_association import associate_gated
 from trackfw_plugins.maths.person_reid import PersonReidEmbedder, body_boxes, detection_rows
 from trackfw_plugins.maths.reid_crop import crop_box
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 from trackfw_plugins.maths.window_association import (
+    FALLBACK_BOUND,
+    TIE_TOLERANCE,
     WindowAssociationParams,
     WindowAssociationResult,
     associate_candidates,
     select_candidate,
+    skipped_result,
 )
 
 
@@ -164,32 +167,50 @@ def score_candidates(
     Candidates in frame a's geometry (``gate`` None) search every window with TPS-RPM and have
     no position evidence (E_p = 1); positioned ones (``gate`` set) are associated inside their
     gate (docs/algorithms/gap-matchers.md#positioned-candidates). Every cost is
-    ψ + ``lambda3`` · E_p.
+    ψ + ``lambda3`` · E_p. Positioned candidates are scored first: when no free candidate can
+    beat the best of them (:func:`free_cost_bound`), the window search is skipped and the free
+    candidates are recorded with an infinite cost and the fallback ``bound``.
     """
-    free = [index for index, candidate in enumerate(candidates) if candidate.gate is None]
+    count = len(candidates[0].positions) if candidates else 0
     results: list[WindowAssociationResult | None] = [None] * len(candidates)
     evidence = [1.0] * len(candidates)
-    if free:
+    for index, candidate in enumerate(candidates):
+        if candidate.gate is not None and len(detections) and count:
+            results[index], evidence[index] = associate_gated(
+                candidate.positions, detections, candidate.gate, appearance, params, lambda3
+            )
+    best = min((result.cost for result in results if result is not None), default=np.inf)
+    free = [index for index, result in enumerate(results) if result is None]
+    bound = free_cost_bound(count, len(detections), appearance, params, lambda3)
+    if free and bound > best + TIE_TOLERANCE:
+        for index in free:
+            results[index] = skipped_result(candidates[index].positions, FALLBACK_BOUND)
+    elif free:
         free_results = associate_candidates(
             [candidates[index].positions for index in free], detections, appearance, params, windows
         )
         for index, result in zip(free, free_results, strict=True):
             result.cost += lambda3
             results[index] = result
-    for index, candidate in enumerate(candidates):
-        if candidate.gate is None:
-            continue
-        if len(detections) and len(candidate.positions):
-            results[index], evidence[index] = associate_gated(
-                candidate.positions, detections, candidate.gate, appearance, params, lambda3
-            )
-        else:
-            (result,) = associate_candidates(
-                [candidate.positions], detections, appearance, params, windows
-            )
-            result.cost += lambda3
-            results[index] = result
     return [result for result in results if result is not None], evidence
+
+
+def free_cost_bound(
+    count: int,
+    detections: int,
+    appearance: FloatArray | None,
+    params: WindowAssociationParams,
+    lambda3: float,
+) -> float:
+    """A lower bound on the cost ψ + λ3 of any free candidate, whatever window wins.
+
+    φ ≥ 0; a window, or all of V in the fallbacks, leaves at least K − N targets unmatched; E_a
+    is a mean of appearance distances, so at least their minimum, unless nothing is matched,
+    which costs λ1 K.
+    """
+    smallest = float(np.min(appearance)) if appearance is not None and appearance.size else 0.0
+    matched = params.lambda1 * max(0, count - detections) + params.lambda2 * smallest
+    return lambda3 + min(params.lambda1 * count, matched)
 
 
 class WindowTpsRpmGapMatcher(GapMatcher[WindowTpsRpmParams]):
@@ -223,13 +244,8 @@ class WindowTpsRpmGapMatcher(GapMatcher[WindowTpsRpmParams]):
         association = WindowAssociationParams(
             **{name: getattr(params, name) for name in WindowAssociationParams.model_fields}
         )
-        windows = (
-            build_windows(detections.points, len(problem.target_ids), association)
-            if len(detections) and len(problem.target_ids)
-            else None
-        )
         results, evidence = score_candidates(
-            candidates, detections.points, appearance, association, windows, params.lambda3
+            candidates, detections.points, appearance, association, None, params.lambda3
         )
         best = select_candidate(results)
         result = results[best]

@@ -44,6 +44,9 @@ FALLBACK_NO_SHAPE_CUTS = "no_shape_cuts"
 FALLBACK_ALL_DETECTIONS = "all_detections"
 FALLBACK_APPEARANCE = "appearance_hungarian"
 FALLBACK_NO_DETECTIONS = "no_detections"
+#: Not searched: a positioned candidate is cheaper than any window could be
+#: (docs/algorithms/gap-matchers.md#positioned-candidates).
+FALLBACK_BOUND = "bound"
 
 
 class WindowAssociationParams(WindowSettings):
@@ -491,6 +494,21 @@ def _no_detection_result(
         appearance=0.0,
         window=np.zeros(0, dtype=np.int64),
         diagnostics=WindowDiagnostics(fallback=FALLBACK_NO_DETECTIONS),
+    )
+
+
+def skipped_result(predicted: FloatArray, fallback: str) -> WindowAssociationResult:
+    """A candidate left unsearched: infinite cost, nothing matched, targets at U ``(K, 2)``."""
+    count = predicted.shape[0]
+    return WindowAssociationResult(
+        positions=np.asarray(predicted, dtype=np.float64).copy(),
+        matched_detection=np.full(count, -1, dtype=np.int64),
+        cost=float("inf"),
+        bending=0.0,
+        unmatched=count,
+        appearance=0.0,
+        window=np.zeros(0, dtype=np.int64),
+        diagnostics=WindowDiagnostics(fallback=fallback),
     )
 
 

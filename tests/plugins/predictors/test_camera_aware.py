@@ -5,8 +5,21 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from trackfw.records import Detections, GapProblem, Interval, TargetState, VideoContext
-from trackfw_plugins.gap_matchers.window_tps_rpm import WindowTpsRpmGapMatcher, WindowTpsRpmParams
+from trackfw.records import (
+    Detections,
+    GapProblem,
+    Interval,
+    Prediction,
+    TargetState,
+    VideoContext,
+)
+from trackfw_plugins.datasets.points import gap_scene
+from trackfw_plugins.gap_matchers.window_tps_rpm import (
+    WindowTpsRpmGapMatcher,
+    WindowTpsRpmParams,
+    score_candidates,
+)
+from trackfw_plugins.maths.window_association import WindowAssociationParams, select_candidate
 from trackfw_plugins.predictors.camera_aware import CameraAwareParams, CameraAwarePredictor
 
 
@@ -85,3 +98,20 @@ def test_gap_matcher_picks_the_registered_candidate_and_records_it() -> None:
     record = solution.diagnostics["candidates"][solution.chosen]
     assert record["predictor"]["registration"]["inliers"] >= 15
     assert record["gate_px"] > 0
+
+
+def test_window_search_is_skipped_only_when_it_cannot_win() -> None:
+    candidates, detections, truth = gap_scene(30, seed=4, candidates=3)
+    params = WindowAssociationParams()
+    free = [Prediction(f"ar{k + 1}", u) for k, u in enumerate(candidates)]
+    placed = Prediction("reg-ar1", detections[truth] + 4.0, gate=60.0)
+    results, evidence = score_candidates([*free, placed], detections, None, params, None, 1.0)
+    assert [r.diagnostics.fallback for r in results[:3]] == ["bound"] * 3
+    assert select_candidate(results) == 3
+    assert results[3].matched_detection.tolist() == truth.tolist()
+    assert 0.0 < evidence[3] < 0.2
+    # Far from the group the positioned candidate finds nothing: every window is searched.
+    astray = Prediction("reg-ar1", detections[truth] + 400.0, gate=60.0)
+    results, _ = score_candidates([*free, astray], detections, None, params, None, 1.0)
+    assert all(r.diagnostics.fallback != "bound" for r in results[:3])
+    assert select_candidate(results) < 3
