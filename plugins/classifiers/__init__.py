@@ -15,11 +15,13 @@ def trackfw_register_stages(registry: Registry) -> None:
     """Register the built-in classifiers."""
     from trackfw_plugins.classifiers.flow_threshold import FlowThresholdClassifier
     from trackfw_plugins.classifiers.oracle import OracleClassifier
+    from trackfw_plugins.classifiers.scene_check import SceneCheckClassifier
     from trackfw_plugins.classifiers.svm import SvmClassifier
 
     registry.add_classifier(OracleClassifier)
     registry.add_classifier(SvmClassifier)
     registry.add_classifier(FlowThresholdClassifier)
+    registry.add_classifier(SceneCheckClassifier)
 
 
 @hookimpl
