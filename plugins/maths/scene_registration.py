@@ -30,7 +30,9 @@ BODY_BELOW = 7.5
 class RegistrationSettings(FiniteModel):
     """Settings of :func:`register_scene` (docs/algorithms/predictors.md#scene-registration)."""
 
-    features: Literal["orb", "akaze"] = Field("orb", description="feature detector/descriptor")
+    features: Literal["orb", "akaze", "sift"] = Field(
+        "orb", description="feature detector/descriptor"
+    )
     max_features: int = Field(1500, ge=10, le=100000, description="ORB: most keypoints per frame")
     max_side: int = Field(
         640, ge=64, le=100000, description="frames are downscaled to this longer side first"
@@ -47,6 +49,12 @@ class RegistrationSettings(FiniteModel):
         0.25, ge=0, le=1, description="smaller inliers/matches: registration failed"
     )
     mask_people: bool = Field(True, description="ignore features on the detected people")
+    max_area_change: float = Field(
+        4.0,
+        gt=1,
+        description="the frame's outline mapped to b must keep its area within this factor"
+        " (wrong fits on a patch of sky or a repeated texture collapse it)",
+    )
 
 
 @dataclass(frozen=True)
@@ -126,6 +134,8 @@ def _features(
     # factories are looked up by name because the stubs of 4.x and 5.x disagree on them.
     if settings.features == "orb":
         detector = getattr(cv2, "ORB_create")(nfeatures=settings.max_features)  # noqa: B009
+    elif settings.features == "sift":
+        detector = getattr(cv2, "SIFT_create")(nfeatures=settings.max_features)  # noqa: B009
     else:
         factory = getattr(cv2, "AKAZE_create", None) or getattr(cv2.xfeatures2d, "AKAZE_create")  # noqa: B009
         detector = factory()
@@ -190,7 +200,8 @@ def register_scene(
     points_b, descriptors_b = _features(grey_b, mask_b, settings)
     if descriptors_a is None or descriptors_b is None or len(points_a) < 2 or len(points_b) < 2:
         return _failed(0, 0, "too few features")
-    pairs = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(descriptors_a, descriptors_b, k=2)
+    norm = cv2.NORM_L2 if settings.features == "sift" else cv2.NORM_HAMMING
+    pairs = cv2.BFMatcher(norm).knnMatch(descriptors_a, descriptors_b, k=2)
     good = [p[0] for p in pairs if len(p) == 2 and p[0].distance < settings.ratio * p[1].distance]
     if len(good) < settings.min_inliers:
         return _failed(len(good), 0, "too few matches")
@@ -208,13 +219,32 @@ def register_scene(
     residual = float(np.median(errors)) / scale if count else float("nan")
     if count < settings.min_inliers or count < settings.min_inlier_ratio * len(good):
         return SceneRegistration(np.eye(3), False, len(good), count, residual, "too few inliers")
+    if not plausible(matrix, grey_a.shape[:2], settings.max_area_change):
+        return SceneRegistration(np.eye(3), False, len(good), count, residual, "implausible map")
     return SceneRegistration(full / full[2, 2], True, len(good), count, residual)
+
+
+def plausible(matrix: FloatArray, shape: tuple[int, int], max_area_change: float) -> bool:
+    """Whether the map keeps the frame's outline a convex, unflipped quadrilateral whose area
+    changes by at most ``max_area_change`` (a camera turn or zoom does; a collapsed fit does not).
+    """
+    height, width = shape
+    corners = np.array([[0.0, 0.0], [width, 0.0], [width, height], [0.0, height]])
+    mapped = transform_points(matrix, corners)
+    edges = np.roll(mapped, -1, axis=0) - mapped
+    following = np.roll(edges, -1, axis=0)
+    turns = edges[:, 0] * following[:, 1] - edges[:, 1] * following[:, 0]
+    x, y = mapped[:, 0], mapped[:, 1]
+    # Shoelace area; positive for the image's (clockwise in y-down) corner order.
+    ratio = 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)) / (width * height)
+    return bool((turns > 0).all()) and 1.0 / max_area_change <= ratio <= max_area_change
 
 
 __all__ = [
     "RegistrationSettings",
     "SceneRegistration",
     "people_mask",
+    "plausible",
     "register_scene",
     "transform_points",
 ]

@@ -43,7 +43,12 @@ class CameraAwareParams(StageParams):
         True, description="offer the AR candidates mapped through the scene registration"
     )
     scene: RegistrationSettings = Field(
-        default_factory=RegistrationSettings, description="scene registration settings"
+        # SIFT + homography: ORB found too few distinctive matches on the weakly textured,
+        # tiled ground of the synthetic scenes; a pure camera rotation is a homography.
+        default_factory=lambda: RegistrationSettings(
+            features="sift", max_features=4000, model="homography"
+        ),
+        description="scene registration settings",
     )
     registration_gate_at_1080: float = Field(
         100.0, gt=0, description="gate of the registered candidates in pixels at 1080p"

@@ -8,6 +8,7 @@ import numpy as np
 from trackfw_plugins.maths.scene_registration import (
     RegistrationSettings,
     people_mask,
+    plausible,
     register_scene,
     transform_points,
 )
@@ -68,3 +69,10 @@ def test_homography_model_and_akaze_run() -> None:
         assert registration.ok
         point = np.array([[300.0, 250.0]])
         assert np.linalg.norm(registration.apply(point) - transform_points(truth, point)) < 3.0
+
+
+def test_collapsed_or_flipped_maps_are_implausible() -> None:
+    assert plausible(np.eye(3), (480, 640), 4.0)
+    assert plausible(np.diag([1.5, 1.5, 1.0]), (480, 640), 4.0)
+    assert not plausible(np.diag([0.2, 0.2, 1.0]), (480, 640), 4.0)  # area / 25
+    assert not plausible(np.diag([-1.0, 1.0, 1.0]), (480, 640), 4.0)  # mirrored
