@@ -28,26 +28,49 @@ from trackfw_plugins.maths.window_association import (
     WindowDiagnostics,
 )
 
-#: Offset-refinement rounds after the first assignment (one is enough for a common drift).
-REFINE_ROUNDS = 1
+
+def tolerance(predicted: FloatArray, gate: float) -> float:
+    """Residual tolerance r: half the median nearest-neighbour spacing of U, at most the gate.
+
+    A pair further than r from its shifted prediction would be closer to a neighbour's place.
+    """
+    if predicted.shape[0] < 2:
+        return gate
+    spacing = distance_matrix(predicted, predicted)
+    np.fill_diagonal(spacing, np.inf)
+    return float(min(gate, 0.5 * np.median(spacing.min(axis=1))))
+
+
+def common_offset(predicted: FloatArray, detections: FloatArray, gate: float) -> FloatArray:
+    """``(2,)`` shift of U, at most ``gate`` long, that brings the most targets within r of a
+    detection (shorter shifts win ties), refined by the median offset of those pairs.
+
+    Every offset v_j − u_i within the gate is tried (K·N of them), so a group whose motion over
+    the interval the prediction got wrong by a common amount is found all the same.
+    """
+    radius = tolerance(predicted, gate)
+    offsets = (detections[None, :, :] - predicted[:, None, :]).reshape(-1, 2)
+    offsets = offsets[np.linalg.norm(offsets, axis=1) <= gate]
+    if offsets.size == 0:
+        return np.zeros(2)
+    # (O, K, N) distances of each shifted prediction to each detection.
+    shifted = predicted[None, :, None, :] + offsets[:, None, None, :]
+    near = np.linalg.norm(shifted - detections[None, None, :, :], axis=3) <= radius
+    support = near.any(axis=2).sum(axis=1)
+    order = np.lexsort((np.linalg.norm(offsets, axis=1), -support))
+    best = offsets[order[0]]
+    rows, columns = np.nonzero(near[order[0]])
+    return np.median(detections[columns] - predicted[rows], axis=0) if rows.size else best
 
 
 def gated_matches(predicted: FloatArray, detections: FloatArray, gate: float) -> IntArray:
-    """``(K,)`` detection row per target (``-1`` beyond the gate), after removing the drift.
+    """``(K,)`` detection row per target (``-1`` when none), after removing the common offset.
 
-    The first assignment is on raw distances; the median offset of its pairs is then removed
-    from the prediction and the assignment repeated, which absorbs a common error of the
-    prediction (the group's mean motion, a slightly wrong registration).
+    Hungarian on the distances to U moved by :func:`common_offset`, pairs beyond the residual
+    tolerance r (:func:`tolerance`) forbidden.
     """
-    shift = np.zeros(2)
-    matched = hungarian(distance_matrix(predicted, detections), gate)
-    for _ in range(REFINE_ROUNDS):
-        if not (matched >= 0).any():
-            break
-        pairs = matched >= 0
-        shift = np.median(detections[matched[pairs]] - predicted[pairs], axis=0)
-        matched = hungarian(distance_matrix(predicted + shift, detections), gate)
-    return matched
+    shift = common_offset(predicted, detections, gate)
+    return hungarian(distance_matrix(predicted + shift, detections), tolerance(predicted, gate))
 
 
 def bending_of_pairs(

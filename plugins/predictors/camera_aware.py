@@ -53,6 +53,12 @@ class CameraAwareParams(StageParams):
     registration_gate_at_1080: float = Field(
         100.0, gt=0, description="gate of the registered candidates in pixels at 1080p"
     )
+    gate_per_frame_at_1080: float = Field(
+        2.0,
+        ge=0,
+        description="both gates grow by this many pixels (at 1080p) per frame of the interval:"
+        " the forecast's common error grows with the horizon",
+    )
     continuity: bool = Field(
         True, description="offer the Kalman prediction as a positioned candidate"
     )
@@ -83,6 +89,7 @@ class CameraAwarePredictor(Predictor[CameraAwareParams]):
         """
         params = self.params
         scale = problem.video.height / 1080.0
+        growth = params.gate_per_frame_at_1080 * problem.horizon
         forecasts = list(self._ar.predict(problem))
         candidates = list(forecasts) if params.free_ar else []
         registration = None
@@ -101,7 +108,7 @@ class CameraAwarePredictor(Predictor[CameraAwareParams]):
                         label=f"reg-{forecast.label}",
                         positions=registration.apply(forecast.positions),
                         diagnostics={**forecast.diagnostics, "registration": summary},
-                        gate=params.registration_gate_at_1080 * scale,
+                        gate=(params.registration_gate_at_1080 + growth) * scale,
                     )
                     for forecast in forecasts
                 ]
@@ -111,7 +118,7 @@ class CameraAwarePredictor(Predictor[CameraAwareParams]):
                 Prediction(
                     label="continuity",
                     positions=kalman.positions,
-                    gate=params.continuity_gate_at_1080 * scale,
+                    gate=(params.continuity_gate_at_1080 + growth) * scale,
                 )
             )
         if not candidates:
