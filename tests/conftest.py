@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -131,3 +132,24 @@ def bad_input_case(
     command and assert it failed in one line (see :func:`bad_input`)."""
     arguments, fragments = request.param
     return lambda: bad_input(arguments, *fragments)
+
+
+def _textured_frame(seed: int, shift: float = 0.0) -> Any:
+    """A 640x480 BGR frame rich in corners (blurred noise and rectangles), moved ``shift`` px."""
+    import cv2
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    image = cv2.GaussianBlur(rng.integers(0, 255, (480, 640, 3), dtype=np.uint8), (5, 5), 0)
+    for _ in range(80):
+        x, y = (int(v) for v in rng.integers(0, 600, 2))
+        colour = tuple(int(c) for c in rng.integers(0, 255, 3))
+        cv2.rectangle(image, (x, y % 440), (x + 30, y % 440 + 25), colour, -1)
+    matrix = np.float64([[1, 0, shift], [0, 1, 0]])
+    return cv2.warpAffine(image, matrix, (640, 480), borderMode=cv2.BORDER_REFLECT)
+
+
+@pytest.fixture
+def textured_frame() -> Callable[..., Any]:
+    """``textured_frame(seed, shift=0.0)``: a synthetic scene for registration tests."""
+    return _textured_frame

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 import pytest
@@ -15,17 +17,6 @@ from trackfw_plugins.classifiers.scene_check import (
 from trackfw_plugins.maths.scene_registration import SceneRegistration
 
 VIDEO = VideoContext(name="v", path="v", n_frames=10, width=640, height=480)
-
-
-def _frame(seed: int, shift: float = 0.0) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    image = cv2.GaussianBlur(rng.integers(0, 255, (480, 640, 3), dtype=np.uint8), (5, 5), 0)
-    for _ in range(80):
-        x, y = (int(v) for v in rng.integers(0, 600, 2))
-        colour = tuple(int(c) for c in rng.integers(0, 255, 3))
-        cv2.rectangle(image, (x, y % 440), (x + 30, y % 440 + 25), colour, -1)
-    matrix = np.float64([[1, 0, shift], [0, 1, 0]])
-    return cv2.warpAffine(image, matrix, (640, 480), borderMode=cv2.BORDER_REFLECT)
 
 
 def _registration(angle: float, scale: float, shift: float) -> SceneRegistration:
@@ -52,13 +43,15 @@ def test_failed_registration_is_not_small() -> None:
     assert not small_motion(failed, 640, 480, SceneCheckParams())
 
 
-def test_svm_calls_are_overruled_only_on_the_same_scene(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_svm_calls_are_overruled_only_on_the_same_scene(
+    monkeypatch: pytest.MonkeyPatch, textured_frame: Callable[..., np.ndarray]
+) -> None:
     classifier = SceneCheckClassifier()
     classifier.start(VIDEO)
     # Every frame after the first is "info-less" to the SVM: the scene check alone decides.
     monkeypatch.setattr(classifier.svm.decider, "decide", lambda probability, features: True)
     none = Detections(points=np.zeros((0, 2)), scores=np.zeros(0))
-    frames = [_frame(1), _frame(1, shift=8.0), _frame(2), _frame(1, shift=4.0)]
+    frames = [textured_frame(1), textured_frame(1, 8.0), textured_frame(2), textured_frame(1, 4.0)]
     decisions = [
         classifier.classify(FrameData(t, image, VIDEO, t == 0), none).infoless
         for t, image in enumerate(frames)

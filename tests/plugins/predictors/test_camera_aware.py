@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 
@@ -23,24 +25,16 @@ from trackfw_plugins.maths.window_association import WindowAssociationParams, se
 from trackfw_plugins.predictors.camera_aware import CameraAwareParams, CameraAwarePredictor
 
 
-def _frame(seed: int) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    image = cv2.GaussianBlur(rng.integers(0, 255, (480, 640, 3), dtype=np.uint8), (5, 5), 0)
-    for _ in range(80):
-        x, y = (int(v) for v in rng.integers(0, 600, 2))
-        colour = tuple(int(c) for c in rng.integers(0, 255, 3))
-        cv2.rectangle(image, (x, y % 440), (x + 30, y % 440 + 25), colour, -1)
-    return image
-
-
-def _problem(shift: tuple[float, float], scene_moves: bool) -> tuple[GapProblem, np.ndarray]:
+def _problem(
+    frame: Callable[..., np.ndarray], shift: tuple[float, float], scene_moves: bool
+) -> tuple[GapProblem, np.ndarray]:
     """Five still targets; the camera pans by ``shift`` (the scene too when ``scene_moves``)."""
     targets = np.array(
         [[200.0, 200.0], [260.0, 215.0], [320.0, 190.0], [230.0, 280.0], [300.0, 290.0]]
     )
     clutter = np.array([[520.0, 100.0], [560.0, 130.0], [80.0, 400.0], [500.0, 400.0]])
     moved = targets + shift
-    image_a = _frame(5)
+    image_a = frame(5)
     matrix = (
         np.float64([[1, 0, shift[0]], [0, 1, shift[1]]])
         if scene_moves
@@ -65,8 +59,8 @@ def _problem(shift: tuple[float, float], scene_moves: bool) -> tuple[GapProblem,
     return problem, np.arange(4, 9)
 
 
-def test_registered_candidates_follow_the_camera() -> None:
-    problem, _ = _problem((60.0, -25.0), scene_moves=True)
+def test_registered_candidates_follow_the_camera(textured_frame: Callable[..., np.ndarray]) -> None:
+    problem, _ = _problem(textured_frame, (60.0, -25.0), scene_moves=True)
     candidates = CameraAwarePredictor().predict(problem)
     labels = [candidate.label for candidate in candidates]
     assert labels == ["ar1", "ar2", "ar3", "reg-ar1", "reg-ar2", "reg-ar3", "continuity"]
@@ -78,16 +72,20 @@ def test_registered_candidates_follow_the_camera() -> None:
     )
 
 
-def test_failed_registration_offers_no_registered_candidate() -> None:
-    problem, _ = _problem((0.0, 0.0), scene_moves=False)
-    problem.frame_b = _frame(9)  # another scene: nothing registers
+def test_failed_registration_offers_no_registered_candidate(
+    textured_frame: Callable[..., np.ndarray],
+) -> None:
+    problem, _ = _problem(textured_frame, (0.0, 0.0), scene_moves=False)
+    problem.frame_b = textured_frame(9)  # another scene: nothing registers
     candidates = CameraAwarePredictor().predict(problem)
     assert not any(candidate.label.startswith("reg-") for candidate in candidates)
     assert candidates[0].diagnostics["registration"]["ok"] is False
 
 
-def test_gap_matcher_picks_the_registered_candidate_and_records_it() -> None:
-    problem, truth = _problem((60.0, -25.0), scene_moves=True)
+def test_gap_matcher_picks_the_registered_candidate_and_records_it(
+    textured_frame: Callable[..., np.ndarray],
+) -> None:
+    problem, truth = _problem(textured_frame, (60.0, -25.0), scene_moves=True)
     predictor = CameraAwarePredictor(CameraAwareParams(continuity=False))
     matcher = WindowTpsRpmGapMatcher(
         WindowTpsRpmParams(lambda2=0.0, lambda3=1.0), predictor=predictor
