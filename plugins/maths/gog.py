@@ -16,21 +16,17 @@ pooled descriptors of the interval and L2-normalised (:func:`normalise_gog`).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from contextlib import AbstractContextManager, nullcontext
+from contextlib import AbstractContextManager
 from functools import lru_cache
 from typing import Any, cast
 
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from threadpoolctl import ThreadpoolController
 
 from trackfw.arrays import FloatArray
 from trackfw_plugins.maths.lomo import rgb_to_hsv
-
-try:  # threadpoolctl ships with scikit-learn, a dependency of trackfw
-    from threadpoolctl import ThreadpoolController
-except ImportError:  # pragma: no cover - exercised only without scikit-learn
-    ThreadpoolController = None
 
 #: Defaults of the authors' GOG.m.
 PATCH_SIZE = 5
@@ -244,17 +240,14 @@ def region_gaussians(
 
 
 @lru_cache(maxsize=1)
-def _blas_controller() -> Any:
-    return ThreadpoolController() if ThreadpoolController is not None else None
+def _blas_controller() -> ThreadpoolController:
+    return ThreadpoolController()
 
 
 def single_threaded_blas() -> AbstractContextManager[Any]:
     """Limit BLAS/LAPACK to one thread: GOG works on thousands of tiny matrices, for which a
     multi-threaded BLAS mostly waits on its own threads (20-100× slower on a busy machine)."""
-    controller = _blas_controller()
-    if controller is None:
-        return nullcontext()
-    return cast(AbstractContextManager[Any], controller.limit(limits=1, user_api="blas"))
+    return cast(AbstractContextManager[Any], _blas_controller().limit(limits=1, user_api="blas"))
 
 
 def gog_colour_descriptor(image_rgb: NDArray[np.uint8], colour_space: str) -> FloatArray:
