@@ -26,10 +26,11 @@ from trackfw.atomic import check_output_folder, write_json
 from trackfw.dataset import list_videos, load_video
 from trackfw.engine import check_videos
 from trackfw.errors import UserError
-from trackfw.pipeline import Pipeline, load_pipeline, parse_yaml
+from trackfw.pipeline import Pipeline, load_pipeline
 from trackfw.records import VideoContext
 from trackfw.registry import Registry
 from trackfw.stage_cache import StageCache, cache_key
+from trackfw.yaml_loading import parse_yaml
 from trackfw_plugins.bench.jobs import Job, JobResult, is_done
 
 RUNS_FOLDER = "runs"

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from trackfw.errors import UserError
-from trackfw.pipeline import parse_yaml
+from trackfw.yaml_loading import parse_yaml
 
 #: Metrics a table file may quote from the paper.
 PAPER_METRICS = ("MOTA", "MOTP", "MOTA-In", "MOTP-In")

@@ -11,7 +11,8 @@ import pytest
 
 from trackfw.cli import main
 from trackfw.errors import UserError
-from trackfw.pipeline import parse_assignments, parse_yaml
+from trackfw.pipeline import parse_assignments
+from trackfw.yaml_loading import parse_yaml
 
 #: Each level repeats the previous one nine times: LEVELS levels expand to 9**LEVELS scalars.
 BOMB_LEVELS = 9
