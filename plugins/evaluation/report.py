@@ -34,6 +34,7 @@ from trackfw.errors import UserError
 from trackfw.formats.run import RunRecord, check_complete_run, read_run
 from trackfw.records import VideoContext
 from trackfw_plugins.datasets.check import check_ground_truth
+from trackfw_plugins.evaluation.capture import CaptureCounts, capture_counts
 from trackfw_plugins.evaluation.clear_mot import (
     ClearMotCounts,
     FrameObservations,
@@ -60,6 +61,7 @@ UNITS = {
     "MOTA": "%", "MOTP": "px", "MOTA-In": "%", "MOTP-In": "px", "IDF1": "%", "IDP": "%", "IDR": "%",
     "HOTA": "%", "DetA": "%", "AssA": "%", "LocA": "%", "IL-Precision": "%", "IL-Recall": "%",
     "IL-F1": "%", "IL-Misclassified": "frames", "Det-Precision": "%", "Det-Recall": "%", "Det-F1": "%",
+    "Captured": "points", "Captured-%": "%",
 }  # fmt: skip
 
 
@@ -102,6 +104,7 @@ class VideoEvaluation:
     sensitivity: dict[float, tuple[ClearMotCounts, ClearMotCounts | None]] = field(
         default_factory=dict
     )
+    capture: CaptureCounts | None = None
 
 
 def _percent(value: float) -> float:
@@ -118,6 +121,7 @@ def _metrics_row(
     detection: DetectionCounts | None,
     sensitivity: dict[float, tuple[ClearMotCounts, ClearMotCounts | None]],
     with_detection: bool,
+    capture: CaptureCounts | None = None,
 ) -> dict[str, float]:
     """One table row from counts: ratios in percent, MOTP in pixels, NaN where undefined."""
     nan = float("nan")
@@ -148,6 +152,9 @@ def _metrics_row(
         "IL-Recall": _percent(infoless.recall) if infoless is not None else nan,
         "IL-F1": _percent(infoless.f1) if infoless is not None else nan,
         "IL-Misclassified": float(infoless.misclassified) if infoless is not None else nan,
+        # Reported points on a bystander's head (capture.py); needs heads.csv.
+        "Captured": float(capture.captured) if capture is not None else nan,
+        "Captured-%": _percent(capture.share) if capture is not None else nan,
     }
     if with_detection:
         row["Det-Precision"] = _percent(detection.precision) if detection is not None else nan
@@ -184,6 +191,7 @@ class DatasetEvaluation:
                 detection=video.detection,
                 sensitivity=video.sensitivity,
                 with_detection=self.settings.detections,
+                capture=video.capture,
             )
             rows.append({"video": video.name, **metrics})
         return rows
@@ -212,7 +220,10 @@ class DatasetEvaluation:
         detection: DetectionCounts | None = None
         hota: HotaCounts | None = None
         sensitivity: dict[float, tuple[ClearMotCounts, ClearMotCounts | None]] = {}
+        capture: CaptureCounts | None = None
         for video in self.videos:
+            if video.capture is not None:
+                capture = video.capture if capture is None else capture + video.capture
             clear = clear + video.clear
             identity = identity + video.identity
             if video.infoless is not None:
@@ -236,6 +247,7 @@ class DatasetEvaluation:
             detection=detection,
             sensitivity=sensitivity,
             with_detection=self.settings.detections,
+            capture=capture,
         )
         return {"video": "pooled", **metrics}
 
@@ -331,6 +343,15 @@ def evaluate_video(
         gt_points_in_intervals=dropped,
         detection=detection,
         sensitivity={distance: clear_at(distance) for distance in settings.sensitivity_px},
+        capture=capture_counts(
+            run.tracks,
+            targets,
+            video.ground_truth.heads,
+            settings.distance_px,
+            settings.detection_match_ratio,
+        )
+        if video.ground_truth.heads
+        else None,
     )
 
 
