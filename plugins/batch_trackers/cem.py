@@ -24,77 +24,17 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from pydantic import Field
 from scipy.optimize import minimize
 
 from trackfw.arrays import FloatArray
-from trackfw.stages import StageParams
-from trackfw_plugins.batch_trackers.cem_energy import (
-    EnergyWeights,
-    Scene,
-    cross_exclusion_energy,
-    total_energy,
-)
-from trackfw_plugins.batch_trackers.cem_moves import JUMP_MOVES, CemState, MoveSettings, pack
+from trackfw_plugins.batch_trackers.cem_energy import Scene, cross_exclusion_energy, total_energy
+from trackfw_plugins.batch_trackers.cem_moves import JUMP_MOVES, CemState, pack
+from trackfw_plugins.batch_trackers.cem_params import CemParams
 from trackfw_plugins.batch_trackers.dpnms import track_dpnms
 from trackfw_plugins.batch_trackers.tracks import Tracks, VideoDetections
 
 #: The reference's 2-D target size is the image width over this.
 TARGET_SIZE_DIVISOR = 30.0
-
-
-class CemParams(StageParams):
-    """CEM settings; defaults are the reference's 2-D defaults (``default2d.ini``)."""
-
-    target_size: float | None = Field(
-        None, gt=0.0, description="c in px, the length scale of every term; null = image width / 30"
-    )
-    existence: float = Field(0.1, ge=0.0, description="lambda: cost of each target-frame in E_det")
-    detection_weight: float = Field(1.0, ge=0.0, description="weight of E_det")
-    dynamics_weight: float = Field(2.0, ge=0.0, description="weight of E_dyn")
-    exclusion_weight: float = Field(1.0, ge=0.0, description="weight of E_exc")
-    persistence_weight: float = Field(1.0, ge=0.0, description="weight of E_per")
-    regulariser_weight: float = Field(0.5, ge=0.0, description="weight of E_reg")
-    cg_iterations: int = Field(30, ge=1, description="conjugate-gradient iterations per descent")
-    max_epochs: int = Field(15, ge=0, description="rounds of jump moves")
-    merge_max_gap: int = Field(15, ge=1, description="merge: largest gap in frames, exclusive")
-    merge_max_distance: float = Field(
-        5.0, gt=0.0, description="merge: largest distance between the ends, in c"
-    )
-    merge_max_speed: float = Field(
-        3.0, gt=0.0, description="merge: largest speed across the gap, in c per frame"
-    )
-    max_extension: int = Field(
-        50, ge=1, description="grow / shrink: most frames added or cut at an end"
-    )
-    add_per_call: int = Field(8, ge=0, description="add: most new targets per call")
-    add_free_distance: float = Field(
-        2.0, gt=0.0, description="add: a detection is free when no target is within this, in c"
-    )
-    split_min_length: int = Field(6, ge=6, description="split: shortest target that is split")
-
-    def weights(self) -> EnergyWeights:
-        """The energy's term weights."""
-        return EnergyWeights(
-            detection=self.detection_weight,
-            dynamics=self.dynamics_weight,
-            exclusion=self.exclusion_weight,
-            persistence=self.persistence_weight,
-            regulariser=self.regulariser_weight,
-            existence=self.existence,
-        )
-
-    def moves(self) -> MoveSettings:
-        """The jump moves' gates."""
-        return MoveSettings(
-            merge_max_gap=self.merge_max_gap,
-            merge_max_distance=self.merge_max_distance,
-            merge_max_speed=self.merge_max_speed,
-            max_extension=self.max_extension,
-            add_per_call=self.add_per_call,
-            add_free_distance=self.add_free_distance,
-            split_min_length=self.split_min_length,
-        )
 
 
 def video_scene(detections: VideoDetections, width: float, height: float, size: float) -> Scene:
@@ -137,17 +77,17 @@ def descend(state: CemState, iterations: int, everything: bool = False) -> None:
     scene = replace(
         state.scene, detections=state.scene.detections[frames], scores=state.scene.scores[frames]
     )
-    weights, alive = state.weights, free.alive
+    params, alive = state.params, free.alive
 
     def energy(flat: FloatArray) -> tuple[float, FloatArray]:
         trial = free.positions.copy()
         trial[alive] = flat.reshape(-1, 2)
-        value, gradient = total_energy(trial, alive, scene, weights, free.spans)
+        value, gradient = total_energy(trial, alive, scene, params, free.spans)
         cross, cross_gradient = cross_exclusion_energy(
             trial, alive, (fixed.positions, fixed.alive), scene.target_size
         )
-        gradient = gradient + weights.exclusion * cross_gradient
-        return value + weights.exclusion * cross, gradient[alive].ravel()
+        gradient = gradient + params.exclusion_weight * cross_gradient
+        return value + params.exclusion_weight * cross, gradient[alive].ravel()
 
     start = free.positions[alive].ravel()
     result = minimize(energy, start, jac=True, method="CG", options={"maxiter": iterations})
@@ -159,7 +99,7 @@ def descend(state: CemState, iterations: int, everything: bool = False) -> None:
 
 def initial_state(detections: VideoDetections, scene: Scene, params: CemParams) -> CemState:
     """One target per DPNMS track (a track's missing frames, if any, filled linearly)."""
-    state = CemState(scene, params.weights(), params.moves(), detections.n_frames)
+    state = CemState(scene, params, detections.n_frames)
     tracks = track_dpnms(detections)
     for track_id in tracks.track_ids():
         rows = tracks.ids == track_id

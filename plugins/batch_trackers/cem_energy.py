@@ -24,21 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from trackfw.arrays import BoolArray, FloatArray, IntArray
+from trackfw_plugins.batch_trackers.cem_params import CemParams
 
 #: Squared distance below which two targets count as on top of each other (keeps E_exc finite).
 _EXCLUSION_FLOOR = 1e-6
-
-
-@dataclass(frozen=True)
-class EnergyWeights:
-    """Weights of the five terms and the per-frame existence cost ``lambda``."""
-
-    detection: float = 1.0
-    dynamics: float = 2.0
-    exclusion: float = 1.0
-    persistence: float = 1.0
-    regulariser: float = 0.5
-    existence: float = 0.1
 
 
 @dataclass(frozen=True)
@@ -208,7 +197,7 @@ def total_energy(
     positions: FloatArray,
     alive: BoolArray,
     scene: Scene,
-    weights: EnergyWeights,
+    params: CemParams,
     spans: Lifespans | None = None,
 ) -> tuple[float, FloatArray]:
     """``E`` and its ``(F, K, 2)`` gradient (zero where no target is alive).
@@ -217,22 +206,22 @@ def total_energy(
     one target.
     """
     spans = spans or Lifespans.of_columns(alive)
-    det, det_gradient = detection_energy(positions, alive, scene, weights.existence)
+    det, det_gradient = detection_energy(positions, alive, scene, params.existence)
     dyn, dyn_gradient = dynamics_energy(positions, alive, scene.target_size)
     exc, exc_gradient = exclusion_energy(positions, alive, scene.target_size)
     per, per_gradient = persistence_energy(positions, alive, scene, spans)
     energy = (
-        weights.detection * det
-        + weights.dynamics * dyn
-        + weights.exclusion * exc
-        + weights.persistence * per
-        + weights.regulariser * regulariser_energy(alive, spans)
+        params.detection_weight * det
+        + params.dynamics_weight * dyn
+        + params.exclusion_weight * exc
+        + params.persistence_weight * per
+        + params.regulariser_weight * regulariser_energy(alive, spans)
     )
     gradient = (
-        weights.detection * det_gradient
-        + weights.dynamics * dyn_gradient
-        + weights.exclusion * exc_gradient
-        + weights.persistence * per_gradient
+        params.detection_weight * det_gradient
+        + params.dynamics_weight * dyn_gradient
+        + params.exclusion_weight * exc_gradient
+        + params.persistence_weight * per_gradient
     )
     return energy, gradient * alive[:, :, None]
 
@@ -262,7 +251,7 @@ def target_terms(
     points: FloatArray,
     others: tuple[FloatArray, BoolArray],
     scene: Scene,
-    weights: EnergyWeights,
+    params: CemParams,
 ) -> FrameTerms:
     """The frame terms of a trajectory on frames ``start .. start + L - 1``.
 
@@ -272,17 +261,17 @@ def target_terms(
         others: ``(L, M, 2)`` positions and ``(L, M)`` alive flags of the other targets on the
             same frames.
         scene: detections and image.
-        weights: term weights.
+        params: the term weights and the existence cost.
     """
     count = len(points)
     frames = slice(start, start + count)
     local = frame_costs(
-        points, (scene.detections[frames], scene.scores[frames]), others, scene, weights
+        points, (scene.detections[frames], scene.scores[frames]), others, scene, params
     )
     bend = np.zeros(count)
     if count >= 3:
         acceleration = points[:-2] - 2.0 * points[1:-1] + points[2:]
-        bend[1:-1] = weights.dynamics * np.sum(acceleration**2, axis=1) / scene.target_size
+        bend[1:-1] = params.dynamics_weight * np.sum(acceleration**2, axis=1) / scene.target_size
     return FrameTerms(start, points, local, bend)
 
 
@@ -291,7 +280,7 @@ def frame_costs(
     detections: tuple[FloatArray, FloatArray],
     others: tuple[FloatArray, BoolArray],
     scene: Scene,
-    weights: EnergyWeights,
+    params: CemParams,
 ) -> FloatArray:
     """Weighted detection plus exclusion cost of positions, each on its own frame.
 
@@ -302,7 +291,7 @@ def frame_costs(
         others: ``(..., M, 2)`` the other targets on each position's frame and ``(..., M)`` their
             alive flags.
         scene: the target size.
-        weights: term weights.
+        params: the term weights and the existence cost.
 
     Returns:
         ``(...)`` costs: ``w_det (lambda - attraction) + w_exc 2 sum_j c² / d_j²``.
@@ -311,12 +300,12 @@ def frame_costs(
     near, scores = detections
     difference = points[..., None, :] - near
     squared = np.einsum("...gk,...gk->...g", difference, difference)
-    detection = weights.existence - np.sum(scores * c2 / (squared + c2), axis=-1)
+    detection = params.existence - np.sum(scores * c2 / (squared + c2), axis=-1)
     positions, alive = others
     apart = points[..., None, :] - positions
     distance = np.maximum(np.einsum("...mk,...mk->...m", apart, apart), _EXCLUSION_FLOOR)
     exclusion = 2.0 * np.sum(np.where(alive, c2 / distance, 0.0), axis=-1)
-    return weights.detection * detection + weights.exclusion * exclusion
+    return params.detection_weight * detection + params.exclusion_weight * exclusion
 
 
 def range_energies(
@@ -324,7 +313,7 @@ def range_energies(
     lows: IntArray,
     highs: IntArray,
     scene: Scene,
-    weights: EnergyWeights,
+    params: CemParams,
     n_frames: int,
 ) -> FloatArray:
     """``(R,)`` share of ``E`` of the target cut to points ``lows[r] .. highs[r]`` (inclusive).
@@ -340,7 +329,7 @@ def range_energies(
     energy += np.where(highs - lows >= 2, bend[np.maximum(highs, lows + 1)] - bend[lows + 1], 0.0)
     first, last = terms.points[lows], terms.points[highs]
     inside = (terms.start + lows > 0, terms.start + highs < n_frames - 1)
-    return energy + end_costs((first, last), inside, highs - lows + 1, scene, weights)
+    return energy + end_costs((first, last), inside, highs - lows + 1, scene, params)
 
 
 def end_costs(
@@ -348,7 +337,7 @@ def end_costs(
     inside: tuple[BoolArray, BoolArray],
     lengths: IntArray,
     scene: Scene,
-    weights: EnergyWeights,
+    params: CemParams,
 ) -> FloatArray:
     """``(R,)`` weighted persistence and regulariser shares of ``R`` trajectories.
 
@@ -357,11 +346,11 @@ def end_costs(
         inside: ``(R,)`` whether each starts after the first frame, and ends before the last.
         lengths: ``(R,)`` numbers of frames.
         scene: image and target size.
-        weights: term weights.
+        params: the term weights and the existence cost.
     """
-    energy = weights.regulariser * (1.0 + 1.0 / np.asarray(lengths, dtype=np.float64))
+    energy = params.regulariser_weight * (1.0 + 1.0 / np.asarray(lengths, dtype=np.float64))
     for points, counts in zip(ends, inside, strict=True):
         distance, _ = border_distance(points, scene.width, scene.height)
         sigma = 1.0 / (1.0 + np.exp(1.0 - distance / scene.target_size))
-        energy = energy + weights.persistence * np.where(counts, sigma, 0.0)
+        energy = energy + params.persistence_weight * np.where(counts, sigma, 0.0)
     return energy

@@ -28,7 +28,6 @@ import numpy as np
 
 from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw_plugins.batch_trackers.cem_energy import (
-    EnergyWeights,
     FrameTerms,
     Lifespans,
     Scene,
@@ -37,25 +36,13 @@ from trackfw_plugins.batch_trackers.cem_energy import (
     range_energies,
     target_terms,
 )
+from trackfw_plugins.batch_trackers.cem_params import CemParams
 from trackfw_plugins.batch_trackers.tracks import Tracks, VideoDetections
 
 #: A move must lower the energy by more than this (rounding is no improvement).
 _TOLERANCE = 1e-9
 #: Shortest target shrink leaves and split makes.
 MIN_LENGTH = 3
-
-
-@dataclass(frozen=True)
-class MoveSettings:
-    """The jump moves' gates (distances in units of the target size ``c``)."""
-
-    merge_max_gap: int = 15
-    merge_max_distance: float = 5.0
-    merge_max_speed: float = 3.0
-    max_extension: int = 50
-    add_per_call: int = 8
-    add_free_distance: float = 2.0
-    split_min_length: int = 6
 
 
 @dataclass(frozen=True)
@@ -114,12 +101,9 @@ class CemState:
     ``touched`` holds the targets a jump move created or changed since the last descent.
     """
 
-    def __init__(
-        self, scene: Scene, weights: EnergyWeights, moves: MoveSettings, n_frames: int
-    ) -> None:
+    def __init__(self, scene: Scene, params: CemParams, n_frames: int) -> None:
         self.scene = scene
-        self.weights = weights
-        self.moves = moves
+        self.params = params
         self.n_frames = n_frames
         self.targets: list[tuple[int, FloatArray] | None] = []
         self.touched: set[int] = set()
@@ -190,12 +174,12 @@ class CemState:
             lo, hi = max(first, start), min(first + len(own), start + len(points))
             others[lo - start : max(hi - start, lo - start), packed.columns[index]] = False
         return target_terms(
-            start, points, (packed.positions[frames], others), self.scene, self.weights
+            start, points, (packed.positions[frames], others), self.scene, self.params
         )
 
     def cut_energies(self, terms: FrameTerms, lows: IntArray, highs: IntArray) -> FloatArray:
         """Shares of the trajectory cut to ``lows[r] .. highs[r]``."""
-        return range_energies(terms, lows, highs, self.scene, self.weights, self.n_frames)
+        return range_energies(terms, lows, highs, self.scene, self.params, self.n_frames)
 
     def share(self, start: int, points: FloatArray, exclude: Sequence[int]) -> float:
         """A whole trajectory's share of the energy."""
@@ -268,16 +252,16 @@ def _merge_pairs(state: CemState) -> list[tuple[int, int]]:
     """Pairs ``(i, j)`` passing the gates: gap, distance between the ends, speed across."""
     if len(state.targets) < 2:
         return []
-    moves, size = state.moves, state.scene.target_size
+    params, size = state.params, state.scene.target_size
     starts = np.array([start for start, _ in map(state.target, state.live())])
     ends = np.array([start + len(points) - 1 for start, points in map(state.target, state.live())])
     firsts = np.array([points[0] for _, points in map(state.target, state.live())])
     lasts = np.array([points[-1] for _, points in map(state.target, state.live())])
     gap = starts[None, :] - ends[:, None] - 1
     distance = np.linalg.norm(firsts[None, :, :] - lasts[:, None, :], axis=2)
-    allowed = (gap >= 0) & (gap < moves.merge_max_gap)
-    allowed &= distance < moves.merge_max_distance * size
-    allowed &= distance / np.maximum(gap + 1, 1) < moves.merge_max_speed * size
+    allowed = (gap >= 0) & (gap < params.merge_max_gap)
+    allowed &= distance < params.merge_max_distance * size
+    allowed &= distance / np.maximum(gap + 1, 1) < params.merge_max_speed * size
     first, second = np.nonzero(allowed)
     return list(zip(first.tolist(), second.tolist(), strict=True))
 
@@ -316,7 +300,7 @@ def grow_move(state: CemState) -> bool:
         for forward in (False, True):
             start, points = state.target(index)
             room = state.n_frames - start - len(points) if forward else start
-            steps = min(state.moves.max_extension, room)
+            steps = min(state.params.max_extension, room)
             if len(points) < 2 or steps <= 0:
                 continue
             extra = np.arange(steps + 1)
@@ -339,7 +323,7 @@ def shrink_move(state: CemState) -> bool:
     for index in state.live():
         for from_end in (False, True):
             start, points = state.target(index)
-            steps = min(state.moves.max_extension, len(points) - MIN_LENGTH)
+            steps = min(state.params.max_extension, len(points) - MIN_LENGTH)
             if steps <= 0:
                 continue
             cut = np.arange(steps + 1)
@@ -355,7 +339,7 @@ def split_move(state: CemState) -> bool:
     for index in state.live():
         start, points = state.target(index)
         length = len(points)
-        if length < max(state.moves.split_min_length, 2 * MIN_LENGTH):
+        if length < max(state.params.split_min_length, 2 * MIN_LENGTH):
             continue
         terms = state.terms(start, points, [index])
         at = np.arange(MIN_LENGTH, length - MIN_LENGTH + 1)
@@ -391,7 +375,7 @@ def add_move(state: CemState) -> bool:
     """Seed 3-frame targets on free detections, the best first, up to ``add_per_call``."""
     frames, points = _free_detections(state)
     added = 0
-    while added < state.moves.add_per_call and len(frames):
+    while added < state.params.add_per_call and len(frames):
         seeds = _seeds(state, frames, points)
         energies = _seed_energies(state, frames - 1, seeds)
         best = int(np.argmin(energies))
@@ -403,7 +387,7 @@ def add_move(state: CemState) -> bool:
         offset = frames - frames[best] + 1
         near = (offset >= 0) & (offset <= 2)
         distance = np.linalg.norm(points - seeds[best][np.clip(offset, 0, 2)], axis=1)
-        taken = near & (distance < state.moves.add_free_distance * state.scene.target_size)
+        taken = near & (distance < state.params.add_free_distance * state.scene.target_size)
         taken[best] = True
         frames, points = frames[~taken], points[~taken]
     return added > 0
@@ -417,7 +401,7 @@ def _free_detections(state: CemState) -> tuple[IntArray, FloatArray]:
     points = scene.detections[frames, slots]
     positions, alive = state.dense()
     apart = np.linalg.norm(points[:, None, :] - positions[frames], axis=2)
-    limit = state.moves.add_free_distance * scene.target_size
+    limit = state.params.add_free_distance * scene.target_size
     free = ~np.any(alive[frames] & (apart < limit), axis=1)
     return frames[free], points[free]
 
@@ -453,12 +437,12 @@ def _seed_energies(state: CemState, starts: IntArray, seeds: FloatArray) -> Floa
         (scene.detections[frames], scene.scores[frames]),
         (positions[frames], alive[frames]),
         scene,
-        state.weights,
+        state.params,
     ).sum(axis=1)
     inside = (starts > 0, starts + 2 < state.n_frames - 1)
     lengths = np.full(len(seeds), 3)
     ends = (seeds[:, 0], seeds[:, 2])
-    return local + end_costs(ends, inside, lengths, scene, state.weights)
+    return local + end_costs(ends, inside, lengths, scene, state.params)
 
 
 #: The moves in the reference's order.

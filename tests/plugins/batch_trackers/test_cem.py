@@ -6,11 +6,10 @@ import numpy as np
 import pytest
 
 from trackfw_plugins.batch_trackers.cem import CemParams, descend, track_cem, video_scene
-from trackfw_plugins.batch_trackers.cem_energy import EnergyWeights, total_energy
+from trackfw_plugins.batch_trackers.cem_energy import total_energy
 from trackfw_plugins.batch_trackers.cem_moves import (
     JUMP_MOVES,
     CemState,
-    MoveSettings,
     add_move,
     grow_move,
     remove_move,
@@ -19,27 +18,14 @@ from trackfw_plugins.batch_trackers.cem_moves import (
 )
 from trackfw_plugins.batch_trackers.tracks import VideoDetections
 
+from .conftest import line_path, path_detections
+
 WIDTH, HEIGHT = 640.0, 480.0  # c = 640 / 30 = 21.3 px
-
-
-def _line(start: tuple[float, float], step: tuple[float, float], n_frames: int) -> np.ndarray:
-    return np.array(start, dtype=float) + np.arange(n_frames)[:, None] * np.array(step, dtype=float)
-
-
-def _detections(paths: list[np.ndarray], n_frames: int) -> VideoDetections:
-    """Score-1 detections from ``(n_frames, 2)`` paths; NaN rows are missed detections."""
-    frames, points = [], []
-    for path in paths:
-        for frame, point in enumerate(path):
-            if np.isfinite(point).all():
-                frames.append(frame)
-                points.append(point)
-    return VideoDetections.from_points(np.array(frames), np.array(points), n_frames)
 
 
 def _state(detections: VideoDetections, targets: list[tuple[int, np.ndarray]]) -> CemState:
     scene = video_scene(detections, WIDTH, HEIGHT, WIDTH / 30.0)
-    state = CemState(scene, EnergyWeights(), MoveSettings(), detections.n_frames)
+    state = CemState(scene, CemParams(), detections.n_frames)
     for start, points in targets:
         state.add(start, points)
     return state
@@ -47,17 +33,17 @@ def _state(detections: VideoDetections, targets: list[tuple[int, np.ndarray]]) -
 
 def _energy(state: CemState) -> float:
     positions, alive = state.dense()
-    return total_energy(positions, alive, state.scene, state.weights)[0]
+    return total_energy(positions, alive, state.scene, state.params)[0]
 
 
 def test_a_targets_share_is_what_the_total_changes_by() -> None:
     random = np.random.default_rng(3)
-    paths = [_line((100, 100), (3, 1), 20), _line((300, 200), (-2, 2), 20)]
-    detections = _detections(paths, 20)
+    paths = [line_path((100, 100), (3, 1), 20), line_path((300, 200), (-2, 2), 20)]
+    detections = path_detections(paths, 20)
     targets = [
         (0, paths[0] + random.normal(0, 5, (20, 2))),
         (4, paths[1][4:15] + random.normal(0, 5, (11, 2))),
-        (2, _line((120, 110), (1, 1), 9)),
+        (2, line_path((120, 110), (1, 1), 9)),
     ]
     state = _state(detections, targets)
     for index in range(3):
@@ -68,8 +54,8 @@ def test_a_targets_share_is_what_the_total_changes_by() -> None:
 
 
 def test_two_straight_targets_are_followed_within_a_pixel_and_no_move_fires() -> None:
-    paths = [_line((100, 100), (3, 1), 40), _line((400, 300), (-2, 0.5), 40)]
-    detections = _detections(paths, 40)
+    paths = [line_path((100, 100), (3, 1), 40), line_path((400, 300), (-2, 0.5), 40)]
+    detections = path_detections(paths, 40)
     state = _state(detections, [(0, path.copy()) for path in paths])
     descend(state, 30)
     for index, path in enumerate(paths):
@@ -84,10 +70,10 @@ def test_two_straight_targets_are_followed_within_a_pixel_and_no_move_fires() ->
 
 
 def test_a_short_gap_is_merged_and_filled_in() -> None:
-    path = _line((100, 100), (3, 1), 40)
+    path = line_path((100, 100), (3, 1), 40)
     missed = path.copy()
     missed[20:25] = np.nan  # DPNMS gives two tracks here: no skip links
-    tracks = track_cem(_detections([missed], 40), WIDTH, HEIGHT)
+    tracks = track_cem(path_detections([missed], 40), WIDTH, HEIGHT)
     assert tracks.track_ids().tolist() == [1]
     frames, points, observed = tracks.track(1)
     assert frames.tolist() == list(range(40))
@@ -96,17 +82,17 @@ def test_a_short_gap_is_merged_and_filled_in() -> None:
 
 
 def test_remove_deletes_a_target_far_from_every_detection() -> None:
-    path = _line((100, 100), (3, 1), 20)
-    stray = _line((500, 400), (0, 0), 20)
-    state = _state(_detections([path], 20), [(0, path), (0, stray)])
+    path = line_path((100, 100), (3, 1), 20)
+    stray = line_path((500, 400), (0, 0), 20)
+    state = _state(path_detections([path], 20), [(0, path), (0, stray)])
     assert remove_move(state)
     assert len(state.targets) == 1 and np.array_equal(state.target(0)[1], path)
     assert not remove_move(state)
 
 
-def test_add_seeds_a_moving_target_on_free_detections() -> None:
-    path = _line((100, 100), (4, -2), 20)
-    state = _state(_detections([path], 20), [])
+def test_add_seeds_a_moving_target_on_freepath_detections() -> None:
+    path = line_path((100, 100), (4, -2), 20)
+    state = _state(path_detections([path], 20), [])
     assert add_move(state)
     # One seed: the others lie within 2 c of it, or make a worse start.
     start, points = state.target(0)
@@ -115,26 +101,26 @@ def test_add_seeds_a_moving_target_on_free_detections() -> None:
 
 
 def test_grow_extends_a_target_onto_its_detections_and_shrink_cuts_frames_without() -> None:
-    path = _line((100, 100), (3, 1), 40)
-    state = _state(_detections([path], 40), [(10, path[10:30].copy())])
+    path = line_path((100, 100), (3, 1), 40)
+    state = _state(path_detections([path], 40), [(10, path[10:30].copy())])
     assert grow_move(state)
     start, points = state.target(0)
     assert (start, len(points)) == (0, 40)
     assert np.allclose(points, path)
     short = path.copy()
     short[30:] = np.nan
-    state = _state(_detections([short], 40), [(0, path.copy())])
+    state = _state(path_detections([short], 40), [(0, path.copy())])
     assert shrink_move(state)
     start, points = state.target(0)
     assert (start, len(points)) == (0, 30)
 
 
 def test_split_cuts_a_target_where_it_jumps() -> None:
-    first = _line((100, 100), (3, 1), 15)
-    second = _line((450, 350), (3, 1), 15) + np.array([45.0, 15.0])
+    first = line_path((100, 100), (3, 1), 15)
+    second = line_path((450, 350), (3, 1), 15) + np.array([45.0, 15.0])
     joined = np.vstack([first, second])
     paths = [np.vstack([first, np.full((15, 2), np.nan)]), np.vstack([first * np.nan, second])]
-    state = _state(_detections(paths, 30), [(0, joined)])
+    state = _state(path_detections(paths, 30), [(0, joined)])
     assert split_move(state)
     assert [(start, len(points)) for start, points in map(state.target, state.live())] == [
         (0, 15),
@@ -146,13 +132,12 @@ def test_bad_parameters_are_refused() -> None:
     for bad in ({"existence": -0.1}, {"target_size": 0.0}, {"cg_iterations": 0}):
         with pytest.raises(ValueError):
             CemParams(**bad)
-    assert CemParams().weights() == EnergyWeights()
 
 
 def test_the_packed_layout_has_the_energy_of_one_column_per_target() -> None:
-    paths = [_line((100, 100), (3, 1), 30), _line((300, 200), (-2, 2), 30)]
+    paths = [line_path((100, 100), (3, 1), 30), line_path((300, 200), (-2, 2), 30)]
     targets = [(0, paths[0][:10]), (12, paths[0][12:]), (3, paths[1][3:20]), (22, paths[1][22:])]
-    state = _state(_detections(paths, 30), targets)
+    state = _state(path_detections(paths, 30), targets)
     packed = state.packed()
     assert packed.positions.shape[1] == 2  # four targets, two at a time
     one_each = np.zeros((30, 4, 2))
@@ -160,15 +145,15 @@ def test_the_packed_layout_has_the_energy_of_one_column_per_target() -> None:
     for column, (start, points) in enumerate(targets):
         one_each[start : start + len(points), column] = points
         alive[start : start + len(points), column] = True
-    expected = total_energy(one_each, alive, state.scene, state.weights)[0]
-    got = total_energy(packed.positions, packed.alive, state.scene, state.weights, packed.spans)[0]
+    expected = total_energy(one_each, alive, state.scene, state.params)[0]
+    got = total_energy(packed.positions, packed.alive, state.scene, state.params, packed.spans)[0]
     assert got == pytest.approx(expected, rel=1e-12)
 
 
 def test_a_local_descent_moves_only_the_touched_target_and_lowers_the_energy() -> None:
-    paths = [_line((100, 100), (3, 1), 30), _line((130, 110), (3, 1), 30)]
+    paths = [line_path((100, 100), (3, 1), 30), line_path((130, 110), (3, 1), 30)]
     noisy = paths[1] + np.random.default_rng(1).normal(0, 4, (30, 2))
-    state = _state(_detections(paths, 30), [(0, paths[0].copy())])
+    state = _state(path_detections(paths, 30), [(0, paths[0].copy())])
     descend(state, 30)
     kept = state.target(0)[1].copy()
     state.add(0, noisy)

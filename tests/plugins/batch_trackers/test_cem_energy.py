@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from trackfw_plugins.batch_trackers.cem_energy import (
-    EnergyWeights,
     Scene,
     cross_exclusion_energy,
     detection_energy,
@@ -18,6 +17,7 @@ from trackfw_plugins.batch_trackers.cem_energy import (
     regulariser_energy,
     total_energy,
 )
+from trackfw_plugins.batch_trackers.cem_params import CemParams
 
 FRAMES, TARGETS = 12, 4
 
@@ -54,7 +54,7 @@ TERMS: dict[str, Callable[[np.ndarray, np.ndarray, Scene], tuple[float, np.ndarr
     "dynamics": lambda p, a, s: dynamics_energy(p, a, s.target_size),
     "exclusion": lambda p, a, s: exclusion_energy(p, a, s.target_size),
     "persistence": lambda p, a, s: persistence_energy(p, a, s),
-    "total": lambda p, a, s: total_energy(p, a, s, EnergyWeights()),
+    "total": lambda p, a, s: total_energy(p, a, s, CemParams()),
     # Targets 0 and 1 move, 2 and 3 are held still (the descent after a jump move).
     "cross-exclusion": lambda p, a, s: _cross(p, a, s),
 }

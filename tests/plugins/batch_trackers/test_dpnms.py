@@ -8,27 +8,12 @@ import pytest
 from trackfw_plugins.batch_trackers.dpnms import DpnmsParams, track_dpnms
 from trackfw_plugins.batch_trackers.tracks import VideoDetections
 
-
-def _detections(tracks: list[np.ndarray], n_frames: int, scores: float = 1.0) -> VideoDetections:
-    """Detections from ``(n_frames, 2)`` paths; NaN rows are missed detections."""
-    frames, points = [], []
-    for path in tracks:
-        for frame, point in enumerate(path):
-            if np.isfinite(point).all():
-                frames.append(frame)
-                points.append(point)
-    return VideoDetections.from_points(
-        np.array(frames), np.array(points), n_frames, np.full(len(frames), scores)
-    )
-
-
-def _line(start: tuple[float, float], step: tuple[float, float], n_frames: int) -> np.ndarray:
-    return np.array(start, dtype=float) + np.arange(n_frames)[:, None] * np.array(step, dtype=float)
+from .conftest import line_path, path_detections
 
 
 def test_two_parallel_targets_give_two_full_tracks() -> None:
-    paths = [_line((100, 100), (3, 0), 30), _line((100, 300), (3, 0), 30)]
-    tracks = track_dpnms(_detections(paths, 30), DpnmsParams(legacy_last_track=False))
+    paths = [line_path((100, 100), (3, 0), 30), line_path((100, 300), (3, 0), 30)]
+    tracks = track_dpnms(path_detections(paths, 30), DpnmsParams(legacy_last_track=False))
     assert tracks.track_ids().tolist() == [1, 2]
     for track_id in (1, 2):
         frames, points, observed = tracks.track(track_id)
@@ -38,9 +23,9 @@ def test_two_parallel_targets_give_two_full_tracks() -> None:
 
 
 def test_legacy_quirk_appends_the_first_track_over_the_stop_cost() -> None:
-    paths = [_line((100, 100), (3, 0), 30), _line((100, 300), (3, 0), 2)]
+    paths = [line_path((100, 100), (3, 0), 30), line_path((100, 300), (3, 0), 2)]
     paths[1] = np.vstack([paths[1], np.full((28, 2), np.nan)])
-    detections = _detections(paths, 30)
+    detections = path_detections(paths, 30)
     # The 2-detection track costs 20 - 0.8 * 2 = 18.4 >= 18: only the quirk keeps it.
     assert len(track_dpnms(detections, DpnmsParams(legacy_last_track=False)).track_ids()) == 1
     legacy = track_dpnms(detections, DpnmsParams())
@@ -50,26 +35,26 @@ def test_legacy_quirk_appends_the_first_track_over_the_stop_cost() -> None:
 
 def test_three_detections_are_the_shortest_track_kept_at_score_one() -> None:
     # 20 - 0.8 * 3 = 17.6 < 18 keeps three detections; with score 0.5 it takes seven.
-    three = [np.vstack([_line((100, 100), (1, 0), 3), np.full((7, 2), np.nan)])]
-    assert len(track_dpnms(_detections(three, 10), DpnmsParams(legacy_last_track=False))) == 3
-    half = track_dpnms(_detections(three, 10, 0.5), DpnmsParams(legacy_last_track=False))
+    three = [np.vstack([line_path((100, 100), (1, 0), 3), np.full((7, 2), np.nan)])]
+    assert len(track_dpnms(path_detections(three, 10), DpnmsParams(legacy_last_track=False))) == 3
+    half = track_dpnms(path_detections(three, 10, 0.5), DpnmsParams(legacy_last_track=False))
     assert len(half) == 0
 
 
 @pytest.mark.parametrize(("jump", "expected_tracks"), [(26.0, 1), (27.0, 2)])
 def test_a_jump_links_at_26_px_and_breaks_at_27_px(jump: float, expected_tracks: int) -> None:
-    path = _line((200, 200), (0, 0), 20)
+    path = line_path((200, 200), (0, 0), 20)
     path[10:, 0] += jump
-    tracks = track_dpnms(_detections([path], 20), DpnmsParams(legacy_last_track=False))
+    tracks = track_dpnms(path_detections([path], 20), DpnmsParams(legacy_last_track=False))
     assert len(tracks.track_ids()) == expected_tracks
     assert len(tracks) == 20
 
 
 @pytest.mark.parametrize("gap", [1, 3])
 def test_a_missed_detection_splits_the_track(gap: int) -> None:
-    path = _line((200, 200), (2, 1), 30)
+    path = line_path((200, 200), (2, 1), 30)
     path[12 : 12 + gap] = np.nan
-    tracks = track_dpnms(_detections([path], 30), DpnmsParams(legacy_last_track=False))
+    tracks = track_dpnms(path_detections([path], 30), DpnmsParams(legacy_last_track=False))
     assert len(tracks.track_ids()) == 2
     spans = sorted(
         (int(frames.min()), int(frames.max()))
@@ -80,21 +65,23 @@ def test_a_missed_detection_splits_the_track(gap: int) -> None:
 
 def test_nms_removes_the_other_target_where_two_heads_overlap() -> None:
     # Two heads crossing: in frames 14-16 their boxes overlap with IoU > 0.5.
-    a = _line((100, 200), (10, 0), 31)
-    b = _line((400, 210), (-10, 0), 31)
-    tracks = track_dpnms(_detections([a, b], 31), DpnmsParams(legacy_last_track=False))
+    a = line_path((100, 200), (10, 0), 31)
+    b = line_path((400, 210), (-10, 0), 31)
+    tracks = track_dpnms(path_detections([a, b], 31), DpnmsParams(legacy_last_track=False))
     # A frame where the boxes overlap keeps one detection only.
     close = np.flatnonzero(np.abs(a[:, 0] - b[:, 0]) < 20)
     assert len(close) > 0
     for frame in close:
         assert (tracks.frames == frame).sum() == 1
-    without = track_dpnms(_detections([a, b], 31), DpnmsParams(nms=False, legacy_last_track=False))
+    without = track_dpnms(
+        path_detections([a, b], 31), DpnmsParams(nms=False, legacy_last_track=False)
+    )
     assert len(without) == 62
 
 
 def test_max_tracks_caps_the_number_of_tracks() -> None:
-    paths = [_line((100, 100 + 150 * k), (2, 0), 10) for k in range(4)]
-    tracks = track_dpnms(_detections(paths, 10), DpnmsParams(max_tracks=2))
+    paths = [line_path((100, 100 + 150 * k), (2, 0), 10) for k in range(4)]
+    tracks = track_dpnms(path_detections(paths, 10), DpnmsParams(max_tracks=2))
     assert len(tracks.track_ids()) == 2
 
 
