@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import difflib
 import functools
+import importlib
 import importlib.metadata
+import inspect
 import traceback
 import typing
 from collections.abc import Callable, Iterable, Mapping
@@ -241,6 +243,40 @@ class Registry:
         if config is None:
             raise UserError(*problems)
         return config.build()
+
+
+def stage_modules(package: str, *modules: str) -> Callable[[Registry], None]:
+    """A ``trackfw_register_stages`` hook for a package with one stage class per module.
+
+    Assign it in the plugin module: ``trackfw_register_stages = stage_modules(__name__, "a", "b")``.
+    When the hook runs it imports ``package.a``, ``package.b`` (not before, so that loading the
+    plugin stays cheap), then registers, module by module in the order given, each concrete stage
+    class a module defines (a subclass of a :data:`trackfw.stages.STAGE_BASES` base) under the kind
+    of its base.
+
+    Args:
+        package: the package holding the modules (``__name__`` of the plugin module).
+        modules: module names inside ``package``.
+
+    Returns:
+        The hook implementation.
+    """
+
+    @hookspecs.hookimpl
+    def trackfw_register_stages(registry: Registry) -> None:
+        loaded = [importlib.import_module(f"{package}.{name}") for name in modules]
+        for module in loaded:
+            for cls in vars(module).values():
+                if not isinstance(cls, type) or cls.__module__ != module.__name__:
+                    continue
+                for kind, base in STAGE_BASES.items():
+                    if issubclass(cls, base) and not inspect.isabstract(cls):
+                        registry._add(kind, cls)
+
+    trackfw_register_stages.__doc__ = (
+        f"Register the stage classes of {package}: {', '.join(modules)}."
+    )
+    return trackfw_register_stages
 
 
 def unknown_name_message(kind: str, name: str, known: Iterable[str]) -> str:

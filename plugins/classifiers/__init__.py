@@ -5,23 +5,11 @@ from __future__ import annotations
 from typing import Any
 
 from trackfw.hookspecs import hookimpl
-from trackfw.registry import Registry
+from trackfw.registry import stage_modules
 
 TRACKFW_PLUGIN_API = 1
 
-
-@hookimpl
-def trackfw_register_stages(registry: Registry) -> None:
-    """Register the built-in classifiers."""
-    from trackfw_plugins.classifiers.flow_threshold import FlowThresholdClassifier
-    from trackfw_plugins.classifiers.oracle import OracleClassifier
-    from trackfw_plugins.classifiers.scene_check import SceneCheckClassifier
-    from trackfw_plugins.classifiers.svm import SvmClassifier
-
-    registry.add_classifier(OracleClassifier)
-    registry.add_classifier(SvmClassifier)
-    registry.add_classifier(FlowThresholdClassifier)
-    registry.add_classifier(SceneCheckClassifier)
+trackfw_register_stages = stage_modules(__name__, "oracle", "svm", "flow_threshold", "scene_check")
 
 
 @hookimpl

@@ -140,6 +140,43 @@ def test_failed_registration_is_rolled_back() -> None:
     assert any("second half failed" in f.error for f in registry.failures)
 
 
+def test_stage_modules_registers_the_classes_each_module_defines_in_order(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    package = tmp_path / "many_stages"
+    package.mkdir()
+    (package / "__init__.py").write_text(
+        "from trackfw.registry import stage_modules\n"
+        "trackfw_register_stages = stage_modules(__name__, 'second', 'first')\n"
+    )
+    detector = textwrap.dedent(
+        """\
+        from trackfw.stages import Detector, Predictor
+
+
+        class {cls}(Detector):
+            name = "{name}"
+
+            def detect(self, frame):
+                return None
+        """
+    )
+    (package / "first.py").write_text(detector.format(cls="First", name="first"))
+    (package / "other.py").write_text(detector.format(cls="Other", name="other"))
+    # An imported stage class and an abstract one are not the module's own stages.
+    (package / "second.py").write_text(
+        detector.format(cls="Second", name="second")
+        + "from many_stages.other import Other\n\n\nclass Half(Predictor):\n    name = 'half'\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import many_stages
+
+    registry = load_registry(extra_modules=[("many", many_stages)], use_entry_points=False)
+    assert not registry.failures, registry.failures
+    assert list(registry.stages) == [("detector", "second"), ("detector", "first")]
+    assert "many_stages: second, first" in many_stages.trackfw_register_stages.__doc__
+
+
 def test_undocumented_parameters_are_refused() -> None:
     from pydantic import Field
 
