@@ -37,6 +37,7 @@ from trackfw_plugins.classifiers.measurements import (
 )
 from trackfw_plugins.classifiers.online_rules import OnlineDecider, OnlineRules, model_rules
 from trackfw_plugins.classifiers.svm_model import SvmModel, fit_platt, platt_probability
+from trackfw_plugins.maths.confusion import LabelCounts
 
 #: Where the reference frame of C_t comes from in training (see :func:`fit_model`).
 Reference = Literal["gt", "replay"]
@@ -47,50 +48,8 @@ GRID_GAMMA: tuple[str | float, ...] = ("scale", 0.01, 0.1, 1.0)
 
 
 @dataclass
-class FrameScores:
+class FrameScores(LabelCounts):
     """Frame-level scores of the info-less label (positive = info-less)."""
-
-    tp: int = 0
-    fp: int = 0
-    fn: int = 0
-    tn: int = 0
-
-    @classmethod
-    def of(cls, predicted: BoolArray, truth: BoolArray) -> FrameScores:
-        """Count ``(T,)`` predictions against ``(T,)`` truth."""
-        predicted, truth = np.asarray(predicted, bool), np.asarray(truth, bool)
-        return cls(
-            tp=int(np.sum(predicted & truth)),
-            fp=int(np.sum(predicted & ~truth)),
-            fn=int(np.sum(~predicted & truth)),
-            tn=int(np.sum(~predicted & ~truth)),
-        )
-
-    def __add__(self, other: FrameScores) -> FrameScores:
-        return FrameScores(
-            self.tp + other.tp, self.fp + other.fp, self.fn + other.fn, self.tn + other.tn
-        )
-
-    @property
-    def precision(self) -> float:
-        """TP / (TP + FP), NaN when nothing was called info-less."""
-        return self.tp / (self.tp + self.fp) if self.tp + self.fp else math.nan
-
-    @property
-    def recall(self) -> float:
-        """TP / (TP + FN), NaN when there is no info-less frame."""
-        return self.tp / (self.tp + self.fn) if self.tp + self.fn else math.nan
-
-    @property
-    def f1(self) -> float:
-        """2 TP / (2 TP + FP + FN)."""
-        total = 2 * self.tp + self.fp + self.fn
-        return 2 * self.tp / total if total else math.nan
-
-    @property
-    def misclassified(self) -> int:
-        """FP + FN."""
-        return self.fp + self.fn
 
     def as_dict(self) -> dict[str, float | None]:
         """Counts and rates, JSON-ready (NaN as None)."""

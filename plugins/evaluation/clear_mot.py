@@ -27,6 +27,7 @@ import numpy as np
 
 from trackfw.arrays import FloatArray, IntArray
 from trackfw_plugins.maths.assignment import distance_matrix, hungarian
+from trackfw_plugins.maths.confusion import PooledCounts, ratio
 
 Geometry = Literal["point", "box"]
 
@@ -198,7 +199,7 @@ def assign_allowed(distances: FloatArray) -> tuple[IntArray, IntArray]:
 
 
 @dataclass
-class ClearMotCounts:
+class ClearMotCounts(PooledCounts):
     """Summed CLEAR MOT counts of a sequence (or of several, pooled by :meth:`__add__`).
 
     Attributes:
@@ -234,12 +235,6 @@ class ClearMotCounts:
     mostly_lost: int = 0
     n_fragmentations: int = 0
 
-    def __add__(self, other: ClearMotCounts) -> ClearMotCounts:
-        """Pool two count sets (objects of different sequences are distinct)."""
-        return ClearMotCounts(
-            **{f.name: getattr(self, f.name) + getattr(other, f.name) for f in fields(self)}
-        )
-
     @property
     def mota(self) -> float:
         """1 - (misses + false positives + switches) / objects, as a fraction; NaN without GT."""
@@ -251,20 +246,17 @@ class ClearMotCounts:
     @property
     def motp(self) -> float:
         """Mean match distance (pixels in point mode, ``1 - IoU`` in box mode); NaN without match."""
-        if self.n_correspondences == 0:
-            return float("nan")
-        return self.distance_sum / self.n_correspondences
+        return ratio(self.distance_sum, self.n_correspondences)
 
     @property
     def recall(self) -> float:
         """Correspondences over objects."""
-        return self.n_correspondences / self.n_objects if self.n_objects else float("nan")
+        return ratio(self.n_correspondences, self.n_objects)
 
     @property
     def precision(self) -> float:
         """Correspondences over correspondences plus false positives."""
-        total = self.n_correspondences + self.n_false_positives
-        return self.n_correspondences / total if total else float("nan")
+        return ratio(self.n_correspondences, self.n_correspondences + self.n_false_positives)
 
 
 @dataclass

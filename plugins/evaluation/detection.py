@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from trackfw.arrays import FloatArray
-from trackfw_plugins.evaluation.counts import ConfusionCounts
+from trackfw_plugins.maths.confusion import ConfusionCounts, ratio
 from trackfw_plugins.maths.head_matching import MATCH_RATIO, match_heads
 
 
@@ -25,7 +25,7 @@ class DetectionCounts(ConfusionCounts):
     @property
     def mean_distance(self) -> float:
         """Mean distance of the matched pairs in pixels."""
-        return self.distance_sum / self.tp if self.tp else float("nan")
+        return ratio(self.distance_sum, self.tp)
 
 
 def frame_detection_counts(

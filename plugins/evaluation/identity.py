@@ -10,7 +10,7 @@ ground-truth and hypothesis appearances.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -21,10 +21,11 @@ from trackfw_plugins.evaluation.clear_mot import (
     default_threshold,
     identity_indices,
 )
+from trackfw_plugins.maths.confusion import ConfusionCounts, PooledCounts
 
 
 @dataclass
-class IdentityCounts:
+class IdentityCounts(PooledCounts):
     """ID counts of a sequence (or pooled over sequences with ``+``).
 
     Attributes:
@@ -37,29 +38,24 @@ class IdentityCounts:
     idfp: int = 0
     idfn: int = 0
 
-    def __add__(self, other: IdentityCounts) -> IdentityCounts:
-        """Pool two count sets."""
-        return IdentityCounts(
-            **{f.name: getattr(self, f.name) + getattr(other, f.name) for f in fields(self)}
-        )
+    def confusion(self) -> ConfusionCounts:
+        """IDTP, IDFP and IDFN as the TP, FP and FN of identities."""
+        return ConfusionCounts(self.idtp, self.idfp, self.idfn)
 
     @property
     def idf1(self) -> float:
-        """2 IDTP / (2 IDTP + IDFP + IDFN); NaN when both sides are empty."""
-        total = 2 * self.idtp + self.idfp + self.idfn
-        return 2 * self.idtp / total if total else float("nan")
+        """2 IDTP / (2 IDTP + IDFP + IDFN), the F1 of identities; NaN when both sides are empty."""
+        return self.confusion().f1
 
     @property
     def idp(self) -> float:
         """IDTP / (IDTP + IDFP)."""
-        total = self.idtp + self.idfp
-        return self.idtp / total if total else float("nan")
+        return self.confusion().precision
 
     @property
     def idr(self) -> float:
         """IDTP / (IDTP + IDFN)."""
-        total = self.idtp + self.idfn
-        return self.idtp / total if total else float("nan")
+        return self.confusion().recall
 
 
 def identity_counts(

@@ -12,11 +12,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from trackfw.arrays import BoolArray, IntArray
-from trackfw_plugins.evaluation.counts import ConfusionCounts
+from trackfw_plugins.maths.confusion import LabelCounts
 
 
 @dataclass
-class InfolessCounts(ConfusionCounts):
+class InfolessCounts(LabelCounts):
     """Confusion counts of the info-less label over frames (pool with ``+``).
 
     Attributes:
@@ -25,13 +25,6 @@ class InfolessCounts(ConfusionCounts):
         fn: info-less frames called informative.
         tn: informative frames called informative.
     """
-
-    tn: int = 0
-
-    @property
-    def misclassified(self) -> int:
-        """Frames whose label is wrong (FP + FN)."""
-        return self.fp + self.fn
 
 
 def infoless_truth(intervals: Iterable[tuple[int, int]], frames: IntArray) -> BoolArray:
@@ -54,11 +47,4 @@ def infoless_counts(predicted: BoolArray, truth: BoolArray) -> InfolessCounts:
     >>> counts.tp, counts.fp, counts.fn, counts.tn, counts.f1
     (1, 1, 1, 1, 0.5)
     """
-    predicted = np.asarray(predicted, dtype=bool)
-    truth = np.asarray(truth, dtype=bool)
-    return InfolessCounts(
-        tp=int(np.sum(predicted & truth)),
-        fp=int(np.sum(predicted & ~truth)),
-        fn=int(np.sum(~predicted & truth)),
-        tn=int(np.sum(~predicted & ~truth)),
-    )
+    return InfolessCounts.of(predicted, truth)
