@@ -27,6 +27,7 @@ from threadpoolctl import ThreadpoolController
 
 from trackfw.arrays import FloatArray
 from trackfw_plugins.maths.lomo import rgb_to_hsv
+from trackfw_plugins.maths.reid_crop import normalise_blocks
 
 #: Defaults of the authors' GOG.m.
 PATCH_SIZE = 5
@@ -320,12 +321,4 @@ def normalise_gog(
     if values.shape[-1] != sum(sizes):
         raise ValueError(f"descriptor length {values.shape[-1]} does not match blocks {sizes}")
     centre = values.mean(axis=0) if mean is None else np.asarray(mean, dtype=np.float64)
-    centred = values - centre
-    output = np.empty_like(centred)
-    start = 0
-    for size in sizes:
-        block = centred[:, start : start + size]
-        norms = np.linalg.norm(block, axis=1, keepdims=True)
-        output[:, start : start + size] = block / np.where(norms > 0, norms, 1.0)
-        start += size
-    return output
+    return normalise_blocks(values - centre, sizes)

@@ -83,8 +83,9 @@ def reid_crop(
     x, y = np.asarray(head_point, dtype=np.float64).reshape(2)
     size = head_size(image.shape[0])
     if mode == "body":
-        return crop_box(image, x - 0.75 * size, y - 0.5 * size, 1.5 * size, 4.0 * size,
-                        BODY_CROP_SHAPE)
+        return crop_box(
+            image, x - 0.75 * size, y - 0.5 * size, 1.5 * size, 4.0 * size, BODY_CROP_SHAPE
+        )
     if mode == "head80":
         return crop_box(image, x - 0.5 * size, y - 0.5 * size, size, size, HEAD_CROP_SHAPE)
     raise ValueError(f"unknown re-ID crop mode {mode!r}; expected 'body' or 'head80'")
@@ -125,14 +126,31 @@ def normalise_pooled(
     sizes = tuple(block_sizes) if block_sizes is not None else (pooled.shape[1],)
     if sum(sizes) != pooled.shape[1]:
         raise ValueError(f"descriptor length {pooled.shape[1]} does not match blocks {sizes}")
-    centred = pooled - pooled.mean(axis=0)
+    centred = normalise_blocks(pooled - pooled.mean(axis=0), sizes)
+    return centred[: len(first)], centred[len(first) :]
+
+
+def normalise_blocks(values: FloatArray, sizes: Sequence[int]) -> FloatArray:
+    """Each row's consecutive blocks of ``sizes`` columns scaled to unit L2 length.
+
+    Args:
+        values: ``(P, D)`` descriptors, ``D = sum(sizes)``.
+        sizes: the block lengths.
+
+    Returns:
+        ``(P, D)`` normalised copy; a block that is all zero stays zero.
+
+    >>> normalise_blocks(np.array([[3.0, 4.0, 0.0, 2.0]]), (2, 1, 1)).tolist()
+    [[0.6, 0.8, 0.0, 1.0]]
+    """
+    output = np.empty_like(values)
     start = 0
     for size in sizes:
-        block = centred[:, start : start + size]
+        block = values[:, start : start + size]
         norms = np.linalg.norm(block, axis=1, keepdims=True)
-        centred[:, start : start + size] = block / np.where(norms > 0, norms, 1.0)
+        output[:, start : start + size] = block / np.where(norms > 0, norms, 1.0)
         start += size
-    return centred[: len(first)], centred[len(first) :]
+    return output
 
 
 def euclidean_distances(first: FloatArray, second: FloatArray) -> FloatArray:
