@@ -20,7 +20,10 @@ The rules chosen, per frame ``t`` with ``m`` live targets and ``n`` observations
 4. *Within-group association*: TPS-RPM (:mod:`trackfw_plugins.maths.tps_rpm`, outlier row and
    column, so ``m != n`` is allowed) from the group's predictions to its observations, the
    correspondence thresholded at 0.5. Groups with fewer than 3 predictions or observations skip
-   the spline (it is not defined by fewer points) and go to step 8.
+   the spline (it is not defined by fewer points) and go to step 8. For speed the frame's
+   groups anneal together, block-diagonally, on two-dimensional arrays
+   (:func:`trackfw_plugins.maths.single_rpm.tps_rpm_groups`); each group's fit is the one
+   ``tps_rpm`` gives it, up to float rounding.
 5. *Merge*: two fitted groups merge when each one's spline maps the other's matched predictions
    within ``gate`` of their observations (one spline explains both); the union is refitted by
    TPS-RPM. Repeated until no pair merges.
@@ -55,7 +58,8 @@ from trackfw.stages import StageParams
 from trackfw_plugins.batch_trackers.tracks import Tracks, VideoDetections
 from trackfw_plugins.maths.assignment import distance_matrix, hungarian
 from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R, KalmanBank
-from trackfw_plugins.maths.tps_rpm import TpsRpmResult, tps_rpm
+from trackfw_plugins.maths.single_rpm import tps_rpm_groups
+from trackfw_plugins.maths.tps_rpm import TpsRpmResult
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 
 _LLOYD_ITERATIONS = 10
@@ -63,7 +67,7 @@ _SPLINE_MIN_POINTS = 3
 
 
 def _fast_rpm() -> TpsRpmSettings:
-    # A coarser annealing than the paper's gap matcher: 15 levels of 2 updates instead of
+    # A coarser annealing than the paper's gap matcher: 13 levels of 2 updates instead of
     # 86 of 5, so that a fit per group per frame stays within the speed target.
     return TpsRpmSettings(anneal_rate=0.7, T_finalfac=100.0, perT_maxit=2, sinkhorn_maxit=5)
 
@@ -125,14 +129,13 @@ class _Group:
         self.fit: TpsRpmResult | None = None
         self.matched = np.full(len(members), -1, dtype=np.int64)  # observation row per member
 
-    def register(self, predicted: FloatArray, points: FloatArray, settings: TpsRpmSettings) -> None:
-        self.fit = None
+    def use(self, fit: TpsRpmResult | None) -> None:
+        """Take a spline fit (None: the group is too small for one) and its matches."""
+        self.fit = fit
         self.matched = np.full(len(self.members), -1, dtype=np.int64)
-        if min(len(self.members), len(self.observations)) < _SPLINE_MIN_POINTS:
-            return
-        self.fit = tps_rpm(predicted[self.members], points[self.observations], settings)
-        pairs = self.fit.matches
-        self.matched[pairs[:, 0]] = self.observations[pairs[:, 1]]
+        if fit is not None:
+            pairs = fit.matches
+            self.matched[pairs[:, 0]] = self.observations[pairs[:, 1]]
 
     def explains(
         self, other: _Group, predicted: FloatArray, points: FloatArray, gate: float
@@ -170,8 +173,7 @@ def associate_frame(
         _Group(np.flatnonzero(labels == group), np.flatnonzero(owner == group))
         for group in range(int(labels.max()) + 1)
     ]
-    for group in groups:
-        group.register(predicted, points, params.rpm)
+    _register(groups, predicted, points, params.rpm)
     groups = _merge(groups, predicted, points, params.rpm, gate)
     free = np.ones(len(points), dtype=bool)
     for group in groups:
@@ -197,6 +199,25 @@ def associate_frame(
     return result
 
 
+def _register(
+    groups: list[_Group], predicted: FloatArray, points: FloatArray, settings: TpsRpmSettings
+) -> None:
+    """Fit each group's spline (TPS-RPM from its predictions to its observations), all the
+    groups' fits in one annealing; groups with too few points for a spline get none."""
+    fitted = [
+        group
+        for group in groups
+        if min(len(group.members), len(group.observations)) >= _SPLINE_MIN_POINTS
+    ]
+    fits = tps_rpm_groups(
+        [(predicted[group.members], points[group.observations]) for group in fitted], settings
+    )
+    for group in groups:
+        group.use(None)
+    for group, fit in zip(fitted, fits, strict=True):
+        group.use(fit)
+
+
 def _merge(
     groups: list[_Group],
     predicted: FloatArray,
@@ -217,7 +238,7 @@ def _merge(
                         np.concatenate([a.members, b.members]),
                         np.concatenate([a.observations, b.observations]),
                     )
-                    union.register(predicted, points, settings)
+                    _register([union], predicted, points, settings)
                     groups = [g for index, g in enumerate(groups) if index not in (first, second)]
                     groups.append(union)
                     merged = True
