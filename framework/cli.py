@@ -8,6 +8,7 @@ print one line each and exit with code 2, without a traceback unless ``--debug``
 from __future__ import annotations
 
 import json
+import os
 import signal
 import sys
 import threading
@@ -142,31 +143,91 @@ def _target_overrides(region: str | None, targets: Path | None) -> list[str]:
     from trackfw.targets import parse_region
 
     if region is not None and targets is not None:
-        raise UserError("--region and --targets both given; expected one way to choose the targets.")
+        raise UserError(
+            "--region and --targets both given; expected one way to choose the targets."
+        )
     if region is not None:
         box = ", ".join(f"{value!r}" for value in parse_region(region))
         return ["engine.init=region", f"engine.region=[{box}]", "engine.targets=null"]
     if targets is not None:
-        return ["engine.init=targets", f"engine.targets={json.dumps(str(targets))}", "engine.region=null"]
+        return [
+            "engine.init=targets",
+            f"engine.targets={json.dumps(str(targets))}",
+            "engine.region=null",
+        ]
     return []
 
 
 def validate_command(
-    pipeline: Annotated[Path, typer.Argument(help="Pipeline YAML file.")],
+    pipeline: Annotated[
+        Path, typer.Argument(help="Pipeline YAML file (or a bench table file: its pipelines).")
+    ],
     overrides: Annotated[
         list[str] | None, typer.Option("--set", help="Override a value (repeatable).")
     ] = None,
 ) -> None:
     """Check a pipeline (plugins, parameters, model files) without running it."""
+    listed = _table_pipelines(pipeline)
+    if listed is None:
+        _validate_pipeline(pipeline, overrides or [])
+        return
+    console.print(
+        f"{pipeline} is a bench table file (it has `rows`), not a pipeline: run it with "
+        f"`trackfw bench`; validating the {len(listed)} pipelines it lists.",
+        markup=False,
+        highlight=False,
+        soft_wrap=True,
+    )
+    failed = 0
+    for path in listed:
+        try:
+            _validate_pipeline(path, overrides or [])
+        except UserError as error:
+            failed += 1
+            for line in error.lines:
+                _print_error(line)
+    if failed:
+        _print_error(f"{pipeline}: {failed} of the {len(listed)} pipelines it lists are not valid.")
+        raise typer.Exit(2)
+
+
+def _validate_pipeline(path: Path, overrides: list[str]) -> None:
+    """Load one pipeline file and print what it resolves to (UserError when it is not valid)."""
     from trackfw.pipeline import load_pipeline
 
-    loaded = load_pipeline(pipeline, get_registry(), overrides or [])
+    loaded = load_pipeline(path, get_registry(), overrides)
     console.print(
-        f"[green]ok[/green] {pipeline}: pipeline {loaded.name!r} (hash {loaded.content_hash})"
+        f"[green]ok[/green] {path}: pipeline {loaded.name!r} (hash {loaded.content_hash})"
     )
     for kind, spec in loaded.stages.items():
         data = spec.as_data()
         console.print(f"  {kind}: {data['type']} {json.dumps(data['params'], sort_keys=True)}")
+
+
+def _table_pipelines(path: Path) -> list[Path] | None:
+    """The pipeline files a bench table file lists (``rows: [{pipeline: PATH}, ...]``, relative
+    to the file); None when ``path`` is not a readable table file (the pipeline loader then
+    says what it is). The table format belongs to the bench plugin; the core only reads the
+    ``rows`` key, so that validate can say what the file is.
+    """
+    from trackfw.yaml_loading import parse_yaml
+
+    try:
+        document = parse_yaml(path.read_text(encoding="utf-8"), str(path))
+    except (OSError, UnicodeDecodeError, UserError):
+        return None
+    if not isinstance(document, dict) or "rows" not in document or "stages" in document:
+        return None
+    rows = document["rows"]
+    what = f"{path} is a bench table file (it has `rows`), not a pipeline, and its"
+    if not isinstance(rows, list) or not rows:
+        raise UserError(f"{what} rows is not a non-empty list of {{pipeline, paper}}.")
+    listed = []
+    for index, row in enumerate(rows):
+        if not isinstance(row, dict) or not isinstance(row.get("pipeline"), str):
+            raise UserError(f"{what} rows[{index}] is not a mapping with a pipeline path.")
+        listed.append(Path(os.path.normpath(path.parent / row["pipeline"])))
+    return listed
 
 
 def plugins_command(
