@@ -105,10 +105,15 @@ class _Workspace:
         self.initial_row = self.scalings[0, first_row:-1]
         # The stopping test per problem: its squared errors summed by one product.
         self.limits = settings.sinkhorn_tol**2 * (rows + columns).astype(np.float64)
+        self.limit_one = float(self.limits[0])
         owner = np.zeros(width + count + 2, dtype=np.int64)
         owner[:width], owner[first_row:-1] = column_group, row_group
         self.indicator = (owner[:, None] == np.arange(len(rows))[None, :]).astype(np.float64)
         self.row_index = (row_group, first_row + np.arange(count))
+        self.results = [
+            (self.scalings[sweep, first_row:-1], self.scalings[sweep, :width])
+            for sweep in range(sweeps + 1)
+        ]
         self.column_index = (column_group, np.arange(width))
 
     def sinkhorn(self, root: float, inverse_root: float) -> tuple[FloatArray, FloatArray]:
@@ -144,6 +149,10 @@ class _Workspace:
         error = self.scalings[:-1] * self.sums
         error -= 1.0
         error *= error
+        if self.mask is None:
+            # One problem: its first sweep that meets the test, read from a stored view.
+            met_one = np.flatnonzero(error.sum(axis=1) < self.limit_one)
+            return self.results[int(met_one[0]) + 1 if len(met_one) else self.sweeps]
         met = error.dot(self.indicator) < self.limits  # (sweeps, G)
         stop = np.where(met.any(axis=0), met.argmax(axis=0) + 1, self.sweeps)
         row_group, row_position = self.row_index
