@@ -103,6 +103,20 @@ class KalmanBank:
         clone.predict(steps)
         return clone.means, clone.covariances
 
+    def warp(self, matrix: FloatArray) -> None:
+        """Carry every filter through a ``(3, 3)`` affine image map (camera-motion compensation).
+
+        The position maps as a point (x' = A x + t), the velocity as a direction (v' = A v) and
+        the covariance with the linear part (P' = T P Tᵀ, T = diag(A, A)).
+        """
+        matrix = np.asarray(matrix, dtype=np.float64)
+        linear, shift = matrix[:2, :2], matrix[:2, 2]
+        self.means[:, :2] = self.means[:, :2] @ linear.T + shift
+        self.means[:, 2:] = self.means[:, 2:] @ linear.T
+        both = np.zeros((4, 4))
+        both[:2, :2] = both[2:, 2:] = linear
+        self.covariances = both @ self.covariances @ both.T
+
     def correct(self, target_indices: NDArray[np.int64], observations: FloatArray) -> None:
         """Correct the filters ``target_indices`` with ``(M, 2)`` observed positions.
 

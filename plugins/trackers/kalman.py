@@ -21,6 +21,7 @@ from trackfw.records import NO_MATCH, OUT_OF_VIEW, TENTATIVE, Detections, Target
 from trackfw.stages import StageParams, Tracker
 from trackfw_plugins.maths.assignment import distance_matrix, greedy_nearest, hungarian
 from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R, KalmanBank
+from trackfw_plugins.maths.scene_registration import RegistrationSettings, register_scene
 from trackfw_plugins.maths.tps_rpm import match_points
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 from trackfw_plugins.trackers.appearance_memory import AppearanceMemory, AppearanceSettings
@@ -36,6 +37,11 @@ def box_sides(detections: Detections) -> FloatArray:
 
 def _kalman3_rpm() -> TpsRpmSettings:
     return TpsRpmSettings(normalisation="template", precision="float32")
+
+
+def _cmc_registration() -> RegistrationSettings:
+    # BoT-SORT's GMC fits an affine map to sparse features between consecutive frames.
+    return RegistrationSettings(model="affine", max_features=500)
 
 
 class KalmanTrackerParams(StageParams):
@@ -69,6 +75,15 @@ class KalmanTrackerParams(StageParams):
         default_factory=AppearanceSettings,
         description="the appearance check of re-acquisition (reads pixels unless 'none')",
     )
+    cmc: bool = Field(
+        False,
+        description="camera-motion compensation: warp the filters by the scene registration of"
+        " the previous frame to this one before predicting (reads pixels)",
+    )
+    cmc_registration: RegistrationSettings = Field(
+        default_factory=_cmc_registration,
+        description="the registration of consecutive frames for cmc",
+    )
 
 
 class KalmanTracker(Tracker[KalmanTrackerParams]):
@@ -78,15 +93,17 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
 
     @property
     def needs_pixels(self) -> bool:
-        return self.params.appearance.descriptor != "none"
+        return self.params.appearance.descriptor != "none" or self.params.cmc
 
     def see(self, image: UInt8Array | None) -> None:
-        self.image = image
+        self.previous_image, self.image = getattr(self, "image", None), image
 
     def start(self, video: VideoContext) -> None:
         params = self.params
         self.video = video
         self.image = None
+        self.previous_image = None
+        self.previous_boxes: FloatArray | None = None
         self.gate = (
             None
             if params.gate_px_at_1080 is None
@@ -131,6 +148,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
 
     def step(self, t: int, detections: Detections) -> None:
         """Predict, associate the tracked and tentative targets, re-acquire the others."""
+        if self.params.cmc:
+            self._compensate(detections)
         self.bank.predict()
         life = self.life
         active, inactive = life.active(), life.inactive()
@@ -146,6 +165,17 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         life.unsupported(t, active[~hit], self.bank.positions[active[~hit]])
         found, columns = self._reacquire(t, detections, inactive, targets, rows[hit])
         life.supported(t, found, self.bank.positions[found], sides[columns])
+
+    def _compensate(self, detections: Detections) -> None:
+        """Warp the filters by the camera motion from the previous frame (when it registers)."""
+        boxes, self.previous_boxes = self.previous_boxes, detections.boxes
+        if self.image is None or self.previous_image is None or len(self.target_ids) == 0:
+            return
+        motion = register_scene(
+            self.previous_image, self.image, boxes, detections.boxes, self.params.cmc_registration
+        )
+        if motion.ok:
+            self.bank.warp(motion.matrix)
 
     def _reacquire(
         self, t: int, detections: Detections, inactive: IntArray, anchors: IntArray, taken: IntArray
@@ -198,6 +228,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         matched = np.asarray(matched_detection, dtype=np.int64).copy()
+        self.previous_boxes = None if detections is None else detections.boxes
         active = self.life.active()
         if self.params.reinit_at_b:
             # The old velocity belongs to the pre-interval camera pose
