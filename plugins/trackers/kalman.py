@@ -223,8 +223,10 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
     ) -> None:
         """Restart the tracked and tentative targets at b; unmatched ones become tentative.
 
-        Lost and out-of-view targets were left out of the gap match and stay as they are. A
-        match to a head of another size (``lifecycle.size_ratio_max``) counts as no match.
+        Lost and out-of-view targets were left out of the gap match and stay as they are. Every
+        stored head size is first carried through the camera's change of scale (the median ratio
+        of the matches); a match to a head of another size than that (``lifecycle.size_ratio_max``)
+        counts as no match.
         """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         matched = np.asarray(matched_detection, dtype=np.int64).copy()
@@ -238,6 +240,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             self.bank.predict()
             self.bank.means[active, :2] = positions[active]
         sides = self._matched_sides(matched, detections)
+        self.life.rescale_sizes(active, sides[active])
         mismatch = self.life.size_mismatch(np.arange(len(matched)), sides)
         matched[np.diagonal(mismatch)] = NO_MATCH
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)

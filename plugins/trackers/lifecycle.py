@@ -199,6 +199,32 @@ class Lifecycle:
                 result[out] = np.median(positions[usable] + self.offsets[row, usable], axis=0)
         return result
 
+    def rescale_sizes(self, rows: IntArray, sizes: FloatArray) -> float:
+        """Carry every target's head size through the camera's change of scale across a gap.
+
+        ``sizes`` are the ``(M,)`` box sides matched to ``rows`` at b (NaN when none). After a
+        look-away the camera may stand nearer or farther, so every head changes size by about
+        the same factor: the median of the matched ratios (with two or more of them) rescales
+        every stored size, and the per-target check then compares like with like.
+
+        Returns:
+            The factor applied (1.0 when fewer than two matches have a known size).
+
+        >>> import numpy as np
+        >>> life = Lifecycle.__new__(Lifecycle)
+        >>> life.size = np.array([20.0, 25.0, 30.0])
+        >>> life.rescale_sizes(np.array([0, 1, 2]), np.array([32.0, 40.0, np.nan]))
+        1.6
+        >>> life.size.tolist()
+        [32.0, 40.0, 48.0]
+        """
+        known = ~np.isnan(sizes) & ~np.isnan(self.size[rows]) & (self.size[rows] > 0)
+        if known.sum() < 2:
+            return 1.0
+        factor = float(np.median(sizes[known] / self.size[rows][known]))
+        self.size = self.size * factor
+        return factor
+
     def size_mismatch(self, rows: IntArray, sizes: FloatArray) -> BoolArray:
         """``(M, N)``: whether detection n (box side ``sizes[n]``) is too large or too small to
         be target ``rows[m]``'s head. Unknown sizes never mismatch.

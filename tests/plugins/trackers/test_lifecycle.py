@@ -187,3 +187,26 @@ def test_appearance_refuses_a_bystander_that_looks_different() -> None:
         assert tracker.statuses() == ["tracked"]
         chosen[descriptor] = tracker.states()[0].matched_detection
     assert chosen == {"none": 0, "patch": 1}
+
+
+def test_matches_at_b_are_judged_after_the_cameras_change_of_scale() -> None:
+    # After the look-away the camera stands nearer: every head is 1.6 times larger. The size
+    # check compares with the rescaled sizes, so the three correct matches stay tracked, also
+    # on the frames after b; without the rescale each would exceed size_ratio_max 1.5.
+    tracker = _tracker()
+    tracker.step(1, _seen(GROUP, [30.0, 30.0, 30.0]))
+    at_b = GROUP * 1.6
+    tracker.reinitialise(40, at_b, np.array([0, 1, 2]), _seen(at_b, [48.0, 48.0, 48.0]))
+    assert tracker.statuses() == ["tracked"] * 3
+    for t in range(41, 60):
+        tracker.step(t, _seen(at_b, [48.0, 48.0, 48.0]))
+    assert tracker.statuses() == ["tracked"] * 3
+    assert [s.matched_detection for s in tracker.states()] == [0, 1, 2]
+
+
+def test_a_match_at_b_out_of_line_with_the_groups_scale_is_tentative() -> None:
+    tracker = _tracker()
+    tracker.step(1, _seen(GROUP, [30.0, 30.0, 30.0]))
+    at_b = GROUP * 1.6
+    tracker.reinitialise(40, at_b, np.array([0, 1, 2]), _seen(at_b, [48.0, 48.0, 100.0]))
+    assert tracker.statuses() == ["tracked", "tracked", "tentative"]
