@@ -315,6 +315,74 @@ def mot_detectors(
     return built
 
 
+class MotTally:
+    """One detector's counts over a sequence: boxes and head points per score level, the head
+    point at 0.116 of the box height, and the :class:`Breakdown` of its misses.
+
+    Args:
+        name: the detector's name (``hog`` gets no 0.116 proxy row).
+        levels: the score levels read off one run; None is the detector's own threshold.
+        configured: the detector's own score threshold.
+    """
+
+    def __init__(self, name: str, levels: list[float | None], configured: float) -> None:
+        self.name, self.levels, self.configured = name, levels, configured
+        self.person_model = name.startswith(("yolox", "light"))
+        self.boxes = {level: Counts() for level in levels}
+        self.heads = {level: Counts() for level in levels}
+        self.proxy = Counts()
+        self.breakdown = Breakdown()
+        self.has_bodies = False
+
+    def add(
+        self,
+        bodies: np.ndarray | None,
+        detections: Detections,
+        truth: np.ndarray,
+        truth_heads: np.ndarray,
+        size: tuple[int, int],
+    ) -> None:
+        """Count one frame: ``(N, 4)`` body boxes (None for a head detector), the detections,
+        the ``(M, 4)`` true body boxes and ``(K, 3)`` true heads, in an image of ``size``."""
+        self.has_bodies = bodies is not None
+        for level in self.levels:
+            keep = (
+                np.ones(len(detections), dtype=bool)
+                if not self.person_model
+                else detections.scores >= (self.configured if level is None else level)
+            )
+            if bodies is not None:
+                self.boxes[level].add(match_boxes(bodies[keep], truth), int(keep.sum()), len(truth))
+            self.heads[level].add(
+                match_heads(detections.points[keep], truth_heads).n_matched,
+                int(keep.sum()),
+                len(truth_heads),
+            )
+        if bodies is None:
+            return
+        kept = detections.scores >= self.configured
+        self.breakdown.add(bodies[kept] if self.person_model else bodies, truth, *size)
+        if self.name != "hog":
+            proxy = body_head_points(bodies[kept], MEASURED_HEAD_FRACTION)
+            self.proxy.add(match_heads(proxy, truth_heads).n_matched, len(proxy), len(truth_heads))
+
+    def print(self, milliseconds: float) -> None:
+        """The detector's rows: one per level, the 0.116 proxy, the breakdown."""
+        for level in self.levels:
+            label = self.name if level is None else f"{self.name}@{level:g}"
+            box = self.boxes[level].summary() if self.has_bodies else "n/a (head boxes)"
+            timing = f"  {milliseconds:.1f} ms/frame" if level is None else ""
+            print(
+                f"  {label:22s} boxes@IoU0.5 {box:32s} head points {self.heads[level].summary()}{timing}"
+            )
+        if self.proxy.found or self.proxy.truth:
+            print(
+                f"  {self.name + ' (head 0.116)':22s} {'':45s} head points {self.proxy.summary()}"
+            )
+        if self.has_bodies:
+            print(f"  {'':22s} boxes {self.breakdown.summary()}")
+
+
 def mot_report(
     sequence: Path,
     names: list[str],
@@ -340,61 +408,19 @@ def mot_report(
         yolox_overrides = {**yolox_overrides, "score_threshold": min(configured, *thresholds)}
     for name, detect in mot_detectors(names, model, yolox_overrides).items():
         person_model = name.startswith(("yolox", "light"))
-        levels: list[float | None] = [None, *thresholds] if person_model else [None]
-        boxes_counts = {level: Counts() for level in levels}
-        head_counts = {level: Counts() for level in levels}
-        proxy_counts = Counts()
-        breakdown = Breakdown()
+        tally = MotTally(name, [None, *thresholds] if person_model else [None], configured)
         seconds = 0.0
         for frame in frames:
             image = cv2.imread(str(mot.frame_paths[frame]))
             started = time.perf_counter()
             bodies, detections = detect(image)
             seconds += time.perf_counter() - started
-            truth = mot.boxes[frame][:, 1:5]
             truth_heads = heads.get(frame, np.zeros((0, 3)))
             truth_heads = truth_heads[truth_heads[:, 2] >= minimum]
-            for level in levels:
-                keep = (
-                    np.ones(len(detections), dtype=bool)
-                    if not person_model
-                    else detections.scores >= (configured if level is None else level)
-                )
-                if bodies is not None:
-                    boxes_counts[level].add(
-                        match_boxes(bodies[keep], truth), int(keep.sum()), len(truth)
-                    )
-                head_counts[level].add(
-                    match_heads(detections.points[keep], truth_heads).n_matched,
-                    int(keep.sum()),
-                    len(truth_heads),
-                )
-            if bodies is not None:
-                breakdown.add(
-                    bodies[detections.scores >= configured] if person_model else bodies,
-                    truth,
-                    mot.width,
-                    mot.height,
-                )
-            if bodies is not None and name != "hog":
-                proxy = body_head_points(
-                    bodies[detections.scores >= configured], MEASURED_HEAD_FRACTION
-                )
-                proxy_counts.add(
-                    match_heads(proxy, truth_heads).n_matched, len(proxy), len(truth_heads)
-                )
-        milliseconds = 1000.0 * seconds / max(len(frames), 1)
-        for level in levels:
-            label = name if level is None else f"{name}@{level:g}"
-            box = boxes_counts[level].summary() if bodies is not None else "n/a (head boxes)"
-            timing = f"  {milliseconds:.1f} ms/frame" if level is None else ""
-            print(
-                f"  {label:22s} boxes@IoU0.5 {box:32s} head points {head_counts[level].summary()}{timing}"
+            tally.add(
+                bodies, detections, mot.boxes[frame][:, 1:5], truth_heads, (mot.width, mot.height)
             )
-        if proxy_counts.found or proxy_counts.truth:
-            print(f"  {name + ' (head 0.116)':22s} {'':45s} head points {proxy_counts.summary()}")
-        if bodies is not None:
-            print(f"  {'':22s} boxes {breakdown.summary()}")
+        tally.print(1000.0 * seconds / max(len(frames), 1))
 
 
 def main() -> None:

@@ -100,7 +100,8 @@ def time_yolox(
     print(f"  CPU time {1000 * cpu:6.1f} ms per frame (all threads of this process)")
 
 
-def main() -> None:
+def parse_arguments() -> argparse.Namespace:
+    """The command line."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--video", type=Path, default=None, help="trackfw video folder")
     parser.add_argument("--frames", type=int, default=20, help="frames to time")
@@ -114,7 +115,30 @@ def main() -> None:
     parser.add_argument(
         "--detector", default="edgebox-cnn", choices=["edgebox-cnn", "yolox", "light-person-192"]
     )
-    arguments = parser.parse_args()
+    return parser.parse_args()
+
+
+def time_edgebox(
+    params: EdgeBoxCnnParams, frames: list[np.ndarray], count: int
+) -> dict[str, list[float]]:
+    """Seconds of each step of ``count`` edgebox-cnn calls (after a warm-up), and the numbers
+    of proposals and detections, per call."""
+    detector = EdgeBoxCnnDetector(params)
+    detector.detect_image(frames[0])  # warm-up (onnxruntime allocations)
+    steps = ("proposals", "scoring", "edge_boxes", "blobs", "proposed")
+    timings: dict[str, list[float]] = {key: [] for key in ("total", *steps, "found")}
+    for frame in itertools.islice(itertools.cycle(frames), count):
+        started = time.perf_counter()
+        detections = detector.detect_image(frame)
+        timings["total"].append(time.perf_counter() - started)
+        for key in steps:
+            timings[key].append(detector.last_timing[key])
+        timings["found"].append(len(detections))
+    return timings
+
+
+def main() -> None:
+    arguments = parse_arguments()
     frames = (
         video_frames(arguments.video, arguments.frames)
         if arguments.video
@@ -129,20 +153,8 @@ def main() -> None:
         overlap_proposals=not arguments.sequential,
         **overrides,
     )
-    detector = EdgeBoxCnnDetector(params)
-    detector.detect_image(frames[0])  # warm-up (onnxruntime allocations)
-    totals, proposals, scoring, counts, found = [], [], [], [], []
-    edge_boxes, blobs = [], []
-    for frame in itertools.islice(itertools.cycle(frames), arguments.frames):
-        started = time.perf_counter()
-        detections = detector.detect_image(frame)
-        totals.append(time.perf_counter() - started)
-        proposals.append(detector.last_timing["proposals"])
-        scoring.append(detector.last_timing["scoring"])
-        edge_boxes.append(detector.last_timing["edge_boxes"])
-        blobs.append(detector.last_timing["blobs"])
-        counts.append(detector.last_timing["proposed"])
-        found.append(len(detections))
+    timings = time_edgebox(params, frames, arguments.frames)
+    totals, proposals, scoring = timings["total"], timings["proposals"], timings["scoring"]
 
     def ms(values: list[float]) -> str:
         return f"{1000 * statistics.mean(values):6.1f} ms (median {1000 * statistics.median(values):.1f})"
@@ -155,15 +167,15 @@ def main() -> None:
     )
     print(f"  total      {ms(totals)}  -> {1 / statistics.mean(totals):.1f} fps")
     print(
-        f"  proposals  {ms(proposals)}  ({statistics.mean(counts):.0f} boxes per frame; waited for)"
+        f"  proposals  {ms(proposals)}  ({statistics.mean(timings['proposed']):.0f} boxes per frame; waited for)"
     )
-    print(f"    EdgeBoxes  {ms(edge_boxes)}")
-    print(f"    DoG blobs  {ms(blobs)}")
+    print(f"    EdgeBoxes  {ms(timings['edge_boxes'])}")
+    print(f"    DoG blobs  {ms(timings['blobs'])}")
     print(f"  scoring    {ms(scoring)}")
     print(
         f"  rest (NMS, merging) {ms([t - p - s for t, p, s in zip(totals, proposals, scoring, strict=True)])}"
     )
-    print(f"  detections {statistics.mean(found):.1f} per frame")
+    print(f"  detections {statistics.mean(timings['found']):.1f} per frame")
 
 
 if __name__ == "__main__":
