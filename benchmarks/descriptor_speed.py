@@ -37,9 +37,7 @@ def main() -> None:
     arguments = parser.parse_args()
 
     rng = np.random.default_rng(0)
-    frame = cv2.resize(
-        rng.integers(0, 256, size=(108, 192, 3), dtype=np.uint8), (1920, 1080)
-    )
+    frame = cv2.resize(rng.integers(0, 256, size=(108, 192, 3), dtype=np.uint8), (1920, 1080))
     points = np.column_stack(
         [rng.uniform(0, 1920, arguments.points), rng.uniform(0, 1080, arguments.points)]
     )

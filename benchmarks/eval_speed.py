@@ -57,7 +57,9 @@ def write_synthetic(
             for t in range(n_frames)
             if not infoless[t]
         }
-        heads = [(t, k, x, y, 80.0) for t, points in targets.items() for k, (x, y) in points.items()]
+        heads = [
+            (t, k, x, y, 80.0) for t, points in targets.items() for k, (x, y) in points.items()
+        ]
         write_annotations(video, targets, heads, intervals)
         # Tracks: noisy copies, a swap after the first interval, a false positive now and then.
         track_ids = np.arange(1, n_targets + 1)

@@ -28,20 +28,34 @@ def main() -> None:
     try:
         started = time.perf_counter()
         cpu_started = os.times()
-        results = run_synth(out / "data", preset="paper", seed=arguments.seed,
-                            videos=arguments.videos, size=arguments.size, jobs=arguments.jobs,
-                            preview=True, echo=False)
+        results = run_synth(
+            out / "data",
+            preset="paper",
+            seed=arguments.seed,
+            videos=arguments.videos,
+            size=arguments.size,
+            jobs=arguments.jobs,
+            preview=True,
+            echo=False,
+        )
         elapsed = time.perf_counter() - started
         cpu = os.times()
         cpu_seconds = (cpu.children_user + cpu.children_system + cpu.user + cpu.system) - (
-            cpu_started.children_user + cpu_started.children_system + cpu_started.user
-            + cpu_started.system)
+            cpu_started.children_user
+            + cpu_started.children_system
+            + cpu_started.user
+            + cpu_started.system
+        )
         frames = sum(result.n_frames for result in results)
-        print(f"preset paper: {len(results)} videos, {frames} frames at {arguments.size},"
-              f" jobs={arguments.jobs}")
-        print(f"elapsed {elapsed:.1f} s ({frames / elapsed:.1f} frames/s),"
-              f" CPU {cpu_seconds:.1f} s ({1000 * cpu_seconds / frames:.1f} ms CPU per frame),"
-              f" load average before/now: {os.getloadavg()[0]:.1f}")
+        print(
+            f"preset paper: {len(results)} videos, {frames} frames at {arguments.size},"
+            f" jobs={arguments.jobs}"
+        )
+        print(
+            f"elapsed {elapsed:.1f} s ({frames / elapsed:.1f} frames/s),"
+            f" CPU {cpu_seconds:.1f} s ({1000 * cpu_seconds / frames:.1f} ms CPU per frame),"
+            f" load average before/now: {os.getloadavg()[0]:.1f}"
+        )
         print(f"target: < 180 s -> {'OK' if elapsed < 180 else 'SLOWER'}")
     finally:
         if arguments.keep is None:

@@ -56,7 +56,9 @@ def _video_files(folder: Path) -> list[Path]:
     return sorted(
         child
         for child in folder.iterdir()
-        if child.is_file() and child.suffix.lower() in VIDEO_SUFFIXES and not child.name.startswith(".")
+        if child.is_file()
+        and child.suffix.lower() in VIDEO_SUFFIXES
+        and not child.name.startswith(".")
     )
 
 
@@ -97,7 +99,11 @@ def list_videos(dataset: Path) -> list[Path]:
     if not dataset.is_dir():
         raise UserError(f"{dataset}: no such file or folder; expected a video or a dataset folder.")
     videos = sorted(
-        [child for child in dataset.iterdir() if not child.name.startswith(".") and is_video_dir(child)]
+        [
+            child
+            for child in dataset.iterdir()
+            if not child.name.startswith(".") and is_video_dir(child)
+        ]
         + _video_files(dataset)
     )
     if not videos:
@@ -108,7 +114,11 @@ def list_videos(dataset: Path) -> list[Path]:
     by_name: dict[str, list[str]] = {}
     for video in videos:
         by_name.setdefault(_video_name(video), []).append(video.name)
-    clashes = [f"{', '.join(entries)} (all named {name!r})" for name, entries in by_name.items() if len(entries) > 1]
+    clashes = [
+        f"{', '.join(entries)} (all named {name!r})"
+        for name, entries in by_name.items()
+        if len(entries) > 1
+    ]
     if clashes:
         raise UserError(
             f"{dataset}: several videos would write to the same output folder: {'; '.join(clashes)};"

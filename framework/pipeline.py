@@ -73,7 +73,6 @@ class EngineOptions(FiniteModel):
         description="batch pipelines: 'keep' gives the batch tracker every frame's detections, info-less frames included (the paper's protocol); 'drop' leaves out the frames the classifier calls info-less",
     )
 
-
     @field_validator("region")
     @classmethod
     def _positive_box(

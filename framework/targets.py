@@ -102,8 +102,9 @@ def _mot_points(path: Path, n_frames: int | None) -> FramePoints:
         )
     points: FramePoints = {}
     heads = body_head_points(rows.boxes)
-    for frame, target_id, (x, y) in zip(rows.frames.tolist(), rows.ids.tolist(), heads.tolist(),
-                                        strict=True):
+    for frame, target_id, (x, y) in zip(
+        rows.frames.tolist(), rows.ids.tolist(), heads.tolist(), strict=True
+    ):
         points.setdefault(frame - 1, {})[target_id] = (x, y)
     return points
 
@@ -187,7 +188,9 @@ class TargetChooser:
             assert self.options.region is not None  # EngineOptions requires it with init: region
             return _in_region(video, t, detections, self.options.region)
         return ChosenTargets(
-            np.arange(1, len(detections) + 1, dtype=np.int64), detections.points.copy(), "detections"
+            np.arange(1, len(detections) + 1, dtype=np.int64),
+            detections.points.copy(),
+            "detections",
         )
 
     def _file(self, video: VideoContext) -> FramePoints:

@@ -25,6 +25,7 @@ DEFAULT_IMAGE_FOLDER = "img1"
 DEFAULT_FPS = 25.0
 IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp")
 
+
 @dataclass
 class MotSequence:
     """One MOTChallenge sequence.

@@ -29,9 +29,6 @@ class CameraPose:
     ty: float = 0.0
 
 
-
-
-
 def pose_homography(
     pose: CameraPose,
     source_size: tuple[int, int],

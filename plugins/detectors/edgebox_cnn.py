@@ -73,9 +73,7 @@ class EdgeBoxCnnParams(StageParams):
     min_box_area: float = Field(
         64.0, ge=1, description="EdgeBoxes min box area, in working-resolution px²."
     )
-    max_boxes: int = Field(
-        500, ge=1, le=100_000, description="EdgeBoxes max number of proposals."
-    )
+    max_boxes: int = Field(500, ge=1, le=100_000, description="EdgeBoxes max number of proposals.")
     edge_min_mag: float = Field(0.4, ge=0, description="EdgeBoxes edge min magnitude.")
     edge_merge_threshold: float = Field(1.0, ge=0, description="EdgeBoxes edge merge threshold.")
     cluster_min_mag: float = Field(1.0, ge=0, description="EdgeBoxes cluster min magnitude.")

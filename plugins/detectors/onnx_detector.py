@@ -268,6 +268,7 @@ def _check_input_shape(path: Path, shape: list[Any], settings: OnnxDetectorParam
     expected = "(1, 3, H, W)" if nchw else "(1, H, W, 3)"
     channels = shape[1] if nchw else shape[3]
     height, width = (shape[2], shape[3]) if nchw else (shape[1], shape[2])
+
     # Only positive integers are static dimensions (names, None or -1 are dynamic).
     def static(value: Any) -> bool:
         return isinstance(value, int) and value >= 1

@@ -153,9 +153,7 @@ def uniform_lbp_histogram(gray: ArrayLike) -> FloatArray:
     1.0
     """
     codes = lbp_codes(gray)
-    counts = np.bincount(uniform_lbp_table()[codes].ravel(), minlength=LBP_BINS).astype(
-        np.float64
-    )
+    counts = np.bincount(uniform_lbp_table()[codes].ravel(), minlength=LBP_BINS).astype(np.float64)
     return counts / max(counts.sum(), 1.0)
 
 

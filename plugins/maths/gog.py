@@ -198,7 +198,9 @@ def patch_gaussians(
 
 
 def region_gaussians(
-    patch_vectors: FloatArray, num_regions: int = NUM_REGIONS, epsilon: float = EPSILON,
+    patch_vectors: FloatArray,
+    num_regions: int = NUM_REGIONS,
+    epsilon: float = EPSILON,
     weighted: bool = True,
 ) -> FloatArray:
     """Region-level Gaussians over overlapping horizontal strips (step 3).
@@ -302,7 +304,8 @@ def gog_descriptors(images_bgr: ArrayLike) -> FloatArray:
 
 
 def normalise_gog(
-    descriptors: ArrayLike, mean: ArrayLike | None = None,
+    descriptors: ArrayLike,
+    mean: ArrayLike | None = None,
     block_sizes: Sequence[int] | None = None,
 ) -> FloatArray:
     """Per colour space: subtract the mean, then L2-normalise (step 4).

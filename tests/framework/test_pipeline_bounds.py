@@ -39,9 +39,7 @@ def _bomb_pipeline(tmp_path: Path, levels: int) -> Path:
     # The anchors sit in the description, the one free-text field.
     body = textwrap.indent(_alias_bomb(levels), "  ")
     path = tmp_path / "bomb.yaml"
-    path.write_text(
-        f"name: bomb\ndescription:\n{body}{VALID_STAGES}", encoding="utf-8"
-    )
+    path.write_text(f"name: bomb\ndescription:\n{body}{VALID_STAGES}", encoding="utf-8")
     return path
 
 
@@ -84,9 +82,12 @@ def test_set_values_are_bounded_too() -> None:
     bomb = "[" + ", ".join(["&x [1, 1, 1, 1, 1, 1, 1, 1, 1]"] + ["*x"] * 3) + "]"
     assert parse_assignments([f"k={bomb}"], "--set")["k"][1] == [1] * 9
     deep = "&a0 [1,1,1,1,1,1,1,1,1]"
-    text = "[" + deep + "".join(
-        f", &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]" for i in range(1, 7)
-    ) + "]"
+    text = (
+        "["
+        + deep
+        + "".join(f", &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]" for i in range(1, 7))
+        + "]"
+    )
     with pytest.raises(UserError, match="alias"):
         parse_assignments([f"k={text}"], "--set")
 

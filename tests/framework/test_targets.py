@@ -123,8 +123,9 @@ def test_start_frame_applies_to_every_mode(
         assert truth is not None
         if mode == "gt":
             assert positions.keys() == truth.targets[14].keys()
-            assert np.allclose([positions[i] for i in positions],
-                               [truth.targets[14][i] for i in positions])
+            assert np.allclose(
+                [positions[i] for i in positions], [truth.targets[14][i] for i in positions]
+            )
 
 
 @pytest.mark.parametrize(
@@ -219,12 +220,40 @@ def test_region_and_targets_from_the_command_line_run(
     heads = _heads(in_bad_input_workspace / "data" / "v1", 0)
     x, y = heads[0]
     box = f"{x - 5},{y - 5},10,10"
-    assert main(["run", "pipeline.yaml", "-i", "data/v1", "-o", str(tmp_path / "a"), "-q",
-                 "--region", box]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "pipeline.yaml",
+                "-i",
+                "data/v1",
+                "-o",
+                str(tmp_path / "a"),
+                "-q",
+                "--region",
+                box,
+            ]
+        )
+        == 0
+    )
     assert '"initialised_from": "region"' in (tmp_path / "a" / "v1" / "summary.json").read_text()
     path = tmp_path / "t.csv"
     path.write_text(f"frame,id,x,y\n4,9,{x},{y}\n", encoding="utf-8")
-    assert main(["run", "pipeline.yaml", "-i", "data/v1", "-o", str(tmp_path / "b"), "-q",
-                 "--targets", str(path)]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "pipeline.yaml",
+                "-i",
+                "data/v1",
+                "-o",
+                str(tmp_path / "b"),
+                "-q",
+                "--targets",
+                str(path),
+            ]
+        )
+        == 0
+    )
     tracks = (tmp_path / "b" / "v1" / "tracks.txt").read_text().splitlines()
     assert tracks[0].startswith("4,9,") and {line.split(",")[1] for line in tracks} == {"9"}

@@ -214,6 +214,10 @@ class _Views:
         x = focal * local[ahead, 0] / depth[ahead] + self.camera.width / 2.0
         y = focal * local[ahead, 1] / depth[ahead] + self.camera.height / 2.0
         margin = focal * HEAD_DIAMETER_M / depth[ahead]
-        inside = (x >= -margin) & (x <= self.camera.width + margin) & (y >= -margin) & (
-            y <= self.camera.height + margin)
+        inside = (
+            (x >= -margin)
+            & (x <= self.camera.width + margin)
+            & (y >= -margin)
+            & (y <= self.camera.height + margin)
+        )
         return not bool(inside.any())

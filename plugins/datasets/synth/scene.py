@@ -99,9 +99,7 @@ class Pose:
         return cls(*(float(value) for value in row))
 
 
-def project(
-    points: FloatArray, pose: Pose, camera: CameraModel
-) -> tuple[FloatArray, FloatArray]:
+def project(points: FloatArray, pose: Pose, camera: CameraModel) -> tuple[FloatArray, FloatArray]:
     """Project world points into the image.
 
     Args:
@@ -114,7 +112,9 @@ def project(
         with depth <= 0 are behind the camera and their pixels are meaningless).
     """
     rotation_matrix = pose.rotation_matrix
-    in_camera = (np.asarray(points, dtype=np.float64).reshape(-1, 3) - pose.centre) @ rotation_matrix.T
+    in_camera = (
+        np.asarray(points, dtype=np.float64).reshape(-1, 3) - pose.centre
+    ) @ rotation_matrix.T
     depth = in_camera[:, 2]
     safe = np.where(depth > 1e-6, depth, 1e-6)
     focal = camera.focal * pose.scale
@@ -173,10 +173,12 @@ class TexturedPlane:
         height, width = self.texture.shape[:2]
         u0, v0, u1, v1 = self.extent if self.extent is not None else (0.0, 0.0, width, height)
         scale = 1.0 / self.pixels_per_metre
-        return np.stack([
-            self.origin + scale * (u * self.axis_u + v * self.axis_v)
-            for u, v in ((u0, v0), (u1, v0), (u1, v1), (u0, v1))
-        ])
+        return np.stack(
+            [
+                self.origin + scale * (u * self.axis_u + v * self.axis_v)
+                for u, v in ((u0, v0), (u1, v0), (u1, v1), (u0, v1))
+            ]
+        )
 
     def homography(self, pose: Pose, camera: CameraModel) -> FloatArray:
         """``(3, 3)`` map from texture pixels to image pixels for this pose."""
@@ -216,24 +218,28 @@ def clip_polygon(points_camera: FloatArray, normal: FloatArray, offset: float) -
     return np.asarray(output).reshape(-1, 3)
 
 
-def clip_to_view(points_camera: FloatArray, camera: CameraModel, scale: float,
-                 near: float = 0.05) -> FloatArray:
+def clip_to_view(
+    points_camera: FloatArray, camera: CameraModel, scale: float, near: float = 0.05
+) -> FloatArray:
     """Clip a polygon in camera coordinates to the viewing frustum (a little wider than the
     image), so that its projection stays bounded; ``(M, 3)``."""
     focal = camera.focal * scale
     slope_x = (camera.width / 2.0 + 8.0) / focal
     slope_y = (camera.height / 2.0 + 8.0) / focal
     polygon = clip_polygon(points_camera, np.array([0.0, 0.0, 1.0]), near)
-    for normal in ((-1.0, 0.0, slope_x), (1.0, 0.0, slope_x), (0.0, -1.0, slope_y), (0.0, 1.0, slope_y)):
+    for normal in (
+        (-1.0, 0.0, slope_x),
+        (1.0, 0.0, slope_x),
+        (0.0, -1.0, slope_y),
+        (0.0, 1.0, slope_y),
+    ):
         if len(polygon) < 3:
             break
         polygon = clip_polygon(polygon, np.array(normal), 0.0)
     return polygon
 
 
-def draw_plane(
-    frame: ImageArray, plane: TexturedPlane, pose: Pose, camera: CameraModel
-) -> None:
+def draw_plane(frame: ImageArray, plane: TexturedPlane, pose: Pose, camera: CameraModel) -> None:
     """Paint ``plane`` over ``frame`` (in place) where it is in front of the camera."""
     rotation_matrix = pose.rotation_matrix
     corners_camera = (plane.corners() - pose.centre) @ rotation_matrix.T
@@ -256,22 +262,34 @@ def draw_plane(
         plane.texture, matrix, size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT_101
     )
     mask = np.zeros((size[1], size[0]), dtype=np.uint8)
-    cv2.fillPoly(mask, [np.round((polygon - [left, top]) * 16).astype(np.int32)], 255,
-                 lineType=cv2.LINE_8, shift=4)
+    cv2.fillPoly(
+        mask,
+        [np.round((polygon - [left, top]) * 16).astype(np.int32)],
+        255,
+        lineType=cv2.LINE_8,
+        shift=4,
+    )
     region = frame[top:bottom, left:right]
     cv2.copyTo(warped, mask, region)
 
 
 def corner_elevations(pose: Pose, camera: CameraModel) -> FloatArray:
     """``(4,)`` sine of the elevation of the rays through the image corners."""
-    corners = np.array([[0.0, 0.0, 1.0], [camera.width, 0.0, 1.0],
-                        [camera.width, camera.height, 1.0], [0.0, camera.height, 1.0]])
+    corners = np.array(
+        [
+            [0.0, 0.0, 1.0],
+            [camera.width, 0.0, 1.0],
+            [camera.width, camera.height, 1.0],
+            [0.0, camera.height, 1.0],
+        ]
+    )
     rays = corners @ np.linalg.inv(camera.intrinsics(pose.scale)).T @ pose.rotation_matrix
     return rays[:, 2] / np.linalg.norm(rays, axis=1)
 
 
-def sky_image(pose: Pose, camera: CameraModel, zenith: tuple[int, int, int],
-              horizon: tuple[int, int, int]) -> ImageArray:
+def sky_image(
+    pose: Pose, camera: CameraModel, zenith: tuple[int, int, int], horizon: tuple[int, int, int]
+) -> ImageArray:
     """A sky gradient by elevation angle, ``(H, W, 3)`` BGR; cheap (computed on a coarse grid)."""
     step = 16
     columns = np.arange(0, camera.width + step, step, dtype=np.float64)
@@ -284,5 +302,7 @@ def sky_image(pose: Pose, camera: CameraModel, zenith: tuple[int, int, int],
     weight = np.clip(elevation, 0.0, 1.0) ** 0.6
     colour = (1.0 - weight[..., None]) * np.array(horizon) + weight[..., None] * np.array(zenith)
     coarse = colour.astype(np.float32)
-    full = cv2.resize(coarse, (len(columns) * step, len(rows) * step), interpolation=cv2.INTER_LINEAR)
+    full = cv2.resize(
+        coarse, (len(columns) * step, len(rows) * step), interpolation=cv2.INTER_LINEAR
+    )
     return np.clip(full[: camera.height, : camera.width], 0, 255).astype(np.uint8)

@@ -61,7 +61,7 @@ class Simulation:
         """``(T,)`` True on info-less frames."""
         mask = np.zeros(self.plan.n_frames, dtype=bool)
         for interval in self.plan.intervals:
-            mask[interval.start: interval.start + interval.length] = True
+            mask[interval.start : interval.start + interval.length] = True
         return mask
 
 
@@ -74,31 +74,49 @@ def simulate(plan: VideoPlan) -> Simulation:
     bearing = math.radians(rng.uniform(-20, 20))
     start = np.array([distance * math.sin(bearing), max(distance * math.cos(bearing), 6.0)])
     if plan.trajectories:
-        crowd = trajectory_crowd(rng, Path(plan.trajectories), plan.n_frames, plan.fps,
-                                 plan.n_targets, start)
+        crowd = trajectory_crowd(
+            rng, Path(plan.trajectories), plan.n_frames, plan.fps, plan.n_targets, start
+        )
     else:
-        crowd = builtin_crowd(rng, plan.n_frames, plan.fps, plan.n_targets, start,
-                              site.background_people, math.degrees(bearing))
+        crowd = builtin_crowd(
+            rng,
+            plan.n_frames,
+            plan.fps,
+            plan.n_targets,
+            start,
+            site.background_people,
+            math.degrees(bearing),
+        )
     motion = plan_wearer(rng, crowd, plan.intervals, camera, site.eye_height, plan.fps, plan.wearer)
     if motion.extra_people is not None:
         crowd = crowd.append(motion.extra_people)
     if plan.leave:
-        crowd, excursions = add_excursions(plan.seed, crowd, motion.poses, camera, plan.intervals,
-                                           plan.leave, plan.fps)
+        crowd, excursions = add_excursions(
+            plan.seed, crowd, motion.poses, camera, plan.intervals, plan.leave, plan.fps
+        )
         crowd.notes["excursions"] = [excursion.as_notes() for excursion in excursions]
-    simulation = Simulation(plan=plan, camera=camera, crowd=crowd, motion=motion,
-                            intervals=[Interval(a=i.start - 1, b=i.start + i.length, kind=i.kind)
-                                       for i in plan.intervals],
-                            targets={}, heads=[], blur=np.zeros((plan.n_frames, 2)),
-                            gain=np.ones(plan.n_frames))
+    simulation = Simulation(
+        plan=plan,
+        camera=camera,
+        crowd=crowd,
+        motion=motion,
+        intervals=[
+            Interval(a=i.start - 1, b=i.start + i.length, kind=i.kind) for i in plan.intervals
+        ],
+        targets={},
+        heads=[],
+        blur=np.zeros((plan.n_frames, 2)),
+        gain=np.ones(plan.n_frames),
+    )
     _ground_truth(simulation)
     simulation.blur = _blur(simulation)
     simulation.gain = _gain(rng, simulation)
     return simulation
 
 
-def visible_heads(simulation: Simulation, frame: int) -> tuple[FloatArray, FloatArray, np.ndarray,
-                                                                np.ndarray]:
+def visible_heads(
+    simulation: Simulation, frame: int
+) -> tuple[FloatArray, FloatArray, np.ndarray, np.ndarray]:
     """Image geometry of every head on one frame.
 
     Returns:
@@ -113,23 +131,32 @@ def visible_heads(simulation: Simulation, frame: int) -> tuple[FloatArray, Float
     focal = camera.focal * pose.scale
     safe_depth = np.maximum(depth, 1e-3)
     size = focal * HEAD_DIAMETER_M / safe_depth
-    inside = (depth > 0.3) & (pixels[:, 0] >= 0) & (pixels[:, 0] <= camera.width - 1) & (
-        pixels[:, 1] >= 0) & (pixels[:, 1] <= camera.height - 1) & (heads_world[:, 1] > 0.3)
+    inside = (
+        (depth > 0.3)
+        & (pixels[:, 0] >= 0)
+        & (pixels[:, 0] <= camera.width - 1)
+        & (pixels[:, 1] >= 0)
+        & (pixels[:, 1] <= camera.height - 1)
+        & (heads_world[:, 1] > 0.3)
+    )
     # The parapet (and the building under it) hides what the ray meets below its top edge.
     crossing = (0.0 - pose.ty) / np.maximum(heads_world[:, 1] - pose.ty, 1e-6)
     height_at_edge = pose.tz + crossing * (heads_world[:, 2] - pose.tz)
     parapet_top = simulation.plan.site.walkway_height + PARAPET_HEIGHT
     unblocked = inside & ((pose.ty >= 0) | (height_at_edge > parapet_top))
     # A nearer person's head or body covering this head's centre hides it.
-    feet, _ = project(np.column_stack([crowd.positions[:, frame], np.zeros(crowd.count)]), pose, camera)
+    feet, _ = project(
+        np.column_stack([crowd.positions[:, frame], np.zeros(crowd.count)]), pose, camera
+    )
     body_width = focal * BODY_WIDTH_M / safe_depth
     nearer = depth[None, :] < depth[:, None] - 0.2  # [i, j]: j is nearer than i
     head_gap = np.linalg.norm(pixels[:, None, :] - pixels[None, :, :], axis=2)
     covered_by_head = head_gap < 0.45 * size[None, :]
     segment = pixels[None, :, :] - feet[None, :, :]  # j's body: foot -> head
     offset = pixels[:, None, :] - feet[None, :, :]
-    along = np.clip(np.sum(offset * segment, axis=2) / np.maximum(np.sum(segment**2, axis=2), 1e-6),
-                    0.0, 0.85)
+    along = np.clip(
+        np.sum(offset * segment, axis=2) / np.maximum(np.sum(segment**2, axis=2), 1e-6), 0.0, 0.85
+    )
     distance = np.linalg.norm(offset - along[..., None] * segment, axis=2)
     covered_by_body = distance < 0.4 * body_width[None, :]
     hidden = np.any(nearer & (covered_by_head | covered_by_body) & unblocked[None, :], axis=1)
@@ -145,12 +172,22 @@ def _ground_truth(simulation: Simulation) -> None:
     for frame in range(simulation.plan.n_frames):
         pixels, size, visible, in_view = visible_heads(simulation, frame)
         for person in np.flatnonzero(visible):
-            heads.append((frame, int(person) + 1, float(pixels[person, 0]), float(pixels[person, 1]),
-                          float(size[person])))
+            heads.append(
+                (
+                    frame,
+                    int(person) + 1,
+                    float(pixels[person, 0]),
+                    float(pixels[person, 1]),
+                    float(size[person]),
+                )
+            )
         if infoless[frame]:
             continue
-        frame_targets = {int(person) + 1: (float(pixels[person, 0]), float(pixels[person, 1]))
-                         for person in target_indices if in_view[person]}
+        frame_targets = {
+            int(person) + 1: (float(pixels[person, 0]), float(pixels[person, 1]))
+            for person in target_indices
+            if in_view[person]
+        }
         if frame_targets:
             targets[frame] = frame_targets
     simulation.targets = targets
@@ -168,8 +205,11 @@ def _blur(simulation: Simulation) -> FloatArray:
     for frame in range(1, len(poses)):
         # The first frame after an interval is where the head has come to rest: its exposure
         # sees the motion that follows it, not the end of the swing.
-        earlier, later = (frame, frame + 1) if frame in first_after and frame + 1 < len(poses) \
+        earlier, later = (
+            (frame, frame + 1)
+            if frame in first_after and frame + 1 < len(poses)
             else (frame - 1, frame)
+        )
         previous = Pose.from_row(poses[earlier])
         forward = previous.rotation_matrix[2]
         point = previous.centre + 20.0 * forward

@@ -22,18 +22,28 @@ def smooth_noise(rng: np.random.Generator, height: int, width: int, cell: int) -
     """Low-frequency noise in [-1, 1], ``(height, width)``: random values on a coarse grid of
     ``cell`` pixels, interpolated bicubically."""
     coarse = rng.uniform(-1.0, 1.0, size=(height // cell + 2, width // cell + 2)).astype(np.float32)
-    full = cv2.resize(coarse, ((width // cell + 2) * cell, (height // cell + 2) * cell),
-                      interpolation=cv2.INTER_CUBIC)
+    full = cv2.resize(
+        coarse,
+        ((width // cell + 2) * cell, (height // cell + 2) * cell),
+        interpolation=cv2.INTER_CUBIC,
+    )
     return np.clip(full[:height, :width], -1.0, 1.0)
 
 
-def _colour_jitter(rng: np.random.Generator, base: ImageArray, count: int, amount: float) -> ImageArray:
+def _colour_jitter(
+    rng: np.random.Generator, base: ImageArray, count: int, amount: float
+) -> ImageArray:
     jitter = rng.uniform(1 - amount, 1 + amount, size=(count, 1))
     return np.clip(base[None, :] * jitter, 0, 255).astype(np.float32)
 
 
-def _finish(rng: np.random.Generator, image: np.ndarray, stains: np.ndarray, stain_amount: float,
-            grain_sigma: float) -> ImageArray:
+def _finish(
+    rng: np.random.Generator,
+    image: np.ndarray,
+    stains: np.ndarray,
+    stain_amount: float,
+    grain_sigma: float,
+) -> ImageArray:
     """Multiply by (1 + stain_amount * stains), add grey grain, clip to uint8 (float32 maths)."""
     height, width = image.shape[:2]
     factor = (1.0 + stain_amount * stains)[..., None].astype(np.float32)
@@ -63,8 +73,12 @@ def ground_texture(
     columns = np.arange(width)[None, :]
     image: ImageArray = np.broadcast_to(base, (height, width, 3)).copy()
     if style in ("paving", "tiles", "brick", "checker"):
-        tile_w = {"paving": 0.6, "tiles": 1.2, "brick": 0.4, "checker": 2.0}[style] * pixels_per_metre
-        tile_h = {"paving": 0.6, "tiles": 1.2, "brick": 0.2, "checker": 2.0}[style] * pixels_per_metre
+        tile_w = {"paving": 0.6, "tiles": 1.2, "brick": 0.4, "checker": 2.0}[
+            style
+        ] * pixels_per_metre
+        tile_h = {"paving": 0.6, "tiles": 1.2, "brick": 0.2, "checker": 2.0}[
+            style
+        ] * pixels_per_metre
         tile_row = rows // max(int(tile_h), 1)
         offset = (tile_row % 2) * (tile_w / 2.0) if style == "brick" else 0.0
         tile_col = ((columns + offset) // max(int(tile_w), 1)).astype(np.int64)
@@ -81,8 +95,10 @@ def ground_texture(
         )
         image[in_joint] *= 0.6
     elif style == "asphalt":
-        lines = (np.abs((columns % int(8 * pixels_per_metre)) - 4 * pixels_per_metre)
-                 < 0.06 * pixels_per_metre) & ((rows // int(3 * pixels_per_metre)) % 2 == 0)
+        lines = (
+            np.abs((columns % int(8 * pixels_per_metre)) - 4 * pixels_per_metre)
+            < 0.06 * pixels_per_metre
+        ) & ((rows // int(3 * pixels_per_metre)) % 2 == 0)
         image[lines] = (215.0, 220.0, 225.0)
     elif style == "gravel":
         path = np.abs(smooth_noise(rng, height, width, int(6 * pixels_per_metre))) < 0.25
@@ -109,11 +125,17 @@ def facade_texture(
     columns = np.arange(width)[None, :]
     # Storeys are counted from the ground (the last row), so windows sit at a sensible height.
     from_ground = height - 1 - rows
-    in_window = ((columns % bay) > (bay - window_w) / 2) & ((columns % bay) < (bay + window_w) / 2) & (
-        (from_ground % storey) > 0.35 * storey) & ((from_ground % storey) < 0.35 * storey + window_h)
+    in_window = (
+        ((columns % bay) > (bay - window_w) / 2)
+        & ((columns % bay) < (bay + window_w) / 2)
+        & ((from_ground % storey) > 0.35 * storey)
+        & ((from_ground % storey) < 0.35 * storey + window_h)
+    )
     glass = np.array([95.0, 80.0, 70.0]) * rng.uniform(0.7, 1.3)
     image = np.where(in_window[..., None], glass, image)
-    return _finish(rng, image, smooth_noise(rng, height, width, int(4 * pixels_per_metre)), 0.1, 6.0)
+    return _finish(
+        rng, image, smooth_noise(rng, height, width, int(4 * pixels_per_metre)), 0.1, 6.0
+    )
 
 
 def plain_texture(
@@ -129,7 +151,8 @@ def plain_texture(
     if stripe_metres > 0:
         columns = np.arange(width)[None, :]
         joint = (columns % max(int(stripe_metres * pixels_per_metre), 2)) < max(
-            1, int(0.02 * pixels_per_metre))
+            1, int(0.02 * pixels_per_metre)
+        )
         image = np.where(joint[..., None], image * 0.65, image)
     return _finish(rng, image, smooth_noise(rng, height, width, int(pixels_per_metre)), 0.1, 7.0)
 
@@ -177,10 +200,15 @@ def _rectify(image: ImageArray, homography_file: Path, pixels_per_metre: float) 
     if out_w < 8 or out_h < 8:
         raise UserError(f"{homography_file}: the homography maps the image to a tiny area.")
     # top-view pixel -> world -> image (row, col) -> image (x, y)
-    to_world = np.array([[1 / pixels_per_metre, 0, low[0]], [0, 1 / pixels_per_metre, low[1]],
-                         [0, 0, 1.0]])
+    to_world = np.array(
+        [[1 / pixels_per_metre, 0, low[0]], [0, 1 / pixels_per_metre, low[1]], [0, 0, 1.0]]
+    )
     swap = np.array([[0.0, 1, 0], [1, 0, 0], [0, 0, 1]])
     matrix = swap @ np.linalg.inv(homography) @ to_world
-    return cv2.warpPerspective(image, matrix, (out_w, out_h),
-                               flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                               borderMode=cv2.BORDER_REFLECT_101)
+    return cv2.warpPerspective(
+        image,
+        matrix,
+        (out_w, out_h),
+        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_REFLECT_101,
+    )

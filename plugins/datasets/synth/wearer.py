@@ -74,8 +74,15 @@ def _wrap(angle: float) -> float:
 
 
 class _Planner:
-    def __init__(self, rng: np.random.Generator, crowd: Crowd, camera: CameraModel,
-                 eye_height: float, fps: float, config: WearerConfig) -> None:
+    def __init__(
+        self,
+        rng: np.random.Generator,
+        crowd: Crowd,
+        camera: CameraModel,
+        eye_height: float,
+        fps: float,
+        config: WearerConfig,
+    ) -> None:
         self.rng = rng
         self.crowd = crowd
         self.camera = camera
@@ -88,52 +95,89 @@ class _Planner:
         window = max(int(fps), 1)
         padded = np.pad(centres, ((window // 2, window - 1 - window // 2), (0, 0)), mode="edge")
         kernel = np.ones(window) / window
-        self.attention = np.stack([np.convolve(padded[:, k], kernel, mode="valid") for k in range(2)],
-                                  axis=1)
+        self.attention = np.stack(
+            [np.convolve(padded[:, k], kernel, mode="valid") for k in range(2)], axis=1
+        )
         frames = self.n_frames
-        self.drift = np.stack([_ou(rng, frames, sigma, 2.0 * fps) for sigma in config.drift_deg], axis=1)
+        self.drift = np.stack(
+            [_ou(rng, frames, sigma, 2.0 * fps) for sigma in config.drift_deg], axis=1
+        )
         time = np.arange(frames) / fps
         bob = 2 * math.pi * rng.uniform(1.6, 2.0) * time + rng.uniform(0, 2 * math.pi)
         self.jitter = np.stack(
-            [amplitude * np.sin(bob + shift) + rng.normal(0, amplitude * 0.4, frames)
-             for amplitude, shift in zip(config.jitter_deg, (0.0, 1.3, 2.1), strict=True)], axis=1)
+            [
+                amplitude * np.sin(bob + shift) + rng.normal(0, amplitude * 0.4, frames)
+                for amplitude, shift in zip(config.jitter_deg, (0.0, 1.3, 2.1), strict=True)
+            ],
+            axis=1,
+        )
 
-    def segment_pose(self, frame: int, offsets: tuple[float, float, float, float],
-                     centre: FloatArray) -> FloatArray:
+    def segment_pose(
+        self, frame: int, offsets: tuple[float, float, float, float], centre: FloatArray
+    ) -> FloatArray:
         aim = np.array([*self.attention[frame], AIM_HEIGHT])
         pan, tilt = look_at(centre, aim)
         pan_offset, tilt_offset, roll, scale = offsets
         drift, jitter = self.drift[frame], self.jitter[frame]
-        return np.array([pan + pan_offset + drift[0] + jitter[0],
-                         tilt + tilt_offset + drift[1] + jitter[1],
-                         roll + drift[2] + jitter[2], scale, *centre])
+        return np.array(
+            [
+                pan + pan_offset + drift[0] + jitter[0],
+                tilt + tilt_offset + drift[1] + jitter[1],
+                roll + drift[2] + jitter[2],
+                scale,
+                *centre,
+            ]
+        )
 
-    def in_view_fraction(self, frames: range, offsets: tuple[float, float, float, float],
-                         centre: FloatArray, margin: float = 12.0) -> tuple[float, float]:
+    def in_view_fraction(
+        self,
+        frames: range,
+        offsets: tuple[float, float, float, float],
+        centre: FloatArray,
+        margin: float = 12.0,
+    ) -> tuple[float, float]:
         """Mean fraction of targets inside the image over ``frames`` and at the first one."""
         fractions = []
         for frame in frames:
             pose = Pose.from_row(self.segment_pose(frame, offsets, centre))
             pixels, depth = project(head_points(self.crowd, frame, self.targets), pose, self.camera)
-            inside = (depth > 0.5) & (pixels[:, 0] > margin) & (pixels[:, 0] < self.camera.width - margin) \
-                & (pixels[:, 1] > margin) & (pixels[:, 1] < self.camera.height - margin)
+            inside = (
+                (depth > 0.5)
+                & (pixels[:, 0] > margin)
+                & (pixels[:, 0] < self.camera.width - margin)
+                & (pixels[:, 1] > margin)
+                & (pixels[:, 1] < self.camera.height - margin)
+            )
             fractions.append(float(inside.mean()))
         return float(np.mean(fractions)), fractions[0]
 
     def first_offsets(self, centre: FloatArray, frames: range) -> tuple[float, float, float, float]:
         rng = self.rng
-        offsets = (rng.uniform(-6, 6), rng.uniform(-4, 3), rng.uniform(-4, 4), rng.uniform(0.9, 1.15))
+        offsets = (
+            rng.uniform(-6, 6),
+            rng.uniform(-4, 3),
+            rng.uniform(-4, 4),
+            rng.uniform(0.9, 1.15),
+        )
         for _attempt in range(12):
             mean, first = self.in_view_fraction(frames, offsets, centre)
             if first >= 1.0 and mean >= self.config.min_in_view:
                 return offsets
-            offsets = (offsets[0] * 0.6, offsets[1] * 0.6, offsets[2] * 0.6, max(0.6, offsets[3] * 0.9))
+            offsets = (
+                offsets[0] * 0.6,
+                offsets[1] * 0.6,
+                offsets[2] * 0.6,
+                max(0.6, offsets[3] * 0.9),
+            )
         return offsets
 
-    def next_offsets(self, previous: tuple[float, float, float, float], centre: FloatArray,
-                     frames: range) -> tuple[float, float, float, float]:
+    def next_offsets(
+        self, previous: tuple[float, float, float, float], centre: FloatArray, frames: range
+    ) -> tuple[float, float, float, float]:
         rng, config = self.rng, self.config
-        pan_change = rng.uniform(config.min_pan_change, config.max_pan_change) * rng.choice([-1.0, 1.0])
+        pan_change = rng.uniform(config.min_pan_change, config.max_pan_change) * rng.choice(
+            [-1.0, 1.0]
+        )
         roll_change = rng.uniform(0.3, 1.0) * config.max_roll_change * rng.choice([-1.0, 1.0])
         tilt_change = rng.uniform(-config.max_tilt_change, config.max_tilt_change)
         log_scale = rng.uniform(math.log(config.scale_range[0]), math.log(config.scale_range[1]))
@@ -208,21 +252,28 @@ def plan_wearer(
             segment_offsets.append(offsets)
             for frame in range(after, ends[index + 1]):
                 poses[frame] = planner.segment_pose(frame, offsets, next_centre)
-        variant, hold, added = _interval_hold(planner, plan, poses[plan.start - 1], centre,
-                                              next_centre, walk_direction)
+        variant, hold, added = _interval_hold(
+            planner, plan, poses[plan.start - 1], centre, next_centre, walk_direction
+        )
         variants.append(variant)
         if added is not None:
             extra = added if extra is None else extra.append(added)
         end_pose = poses[after] if after < n_frames else hold[-1]
-        poses[plan.start: after] = _swing(poses[plan.start - 1], hold, end_pose)
+        poses[plan.start : after] = _swing(poses[plan.start - 1], hold, end_pose)
         centre = next_centre
-    return WearerMotion(poses=poses, variants=variants, extra_people=extra,
-                        segment_offsets=segment_offsets)
+    return WearerMotion(
+        poses=poses, variants=variants, extra_people=extra, segment_offsets=segment_offsets
+    )
 
 
-def _interval_hold(planner: _Planner, plan: IntervalPlan, before: FloatArray, centre: FloatArray,
-                   next_centre: FloatArray, walk_direction: float
-                   ) -> tuple[str, FloatArray, Crowd | None]:
+def _interval_hold(
+    planner: _Planner,
+    plan: IntervalPlan,
+    before: FloatArray,
+    centre: FloatArray,
+    next_centre: FloatArray,
+    walk_direction: float,
+) -> tuple[str, FloatArray, Crowd | None]:
     """Poses ``(length, 7)`` the wearer would hold while looking away (swings added later)."""
     rng, fps = planner.rng, planner.fps
     frames = np.arange(plan.start, plan.start + plan.length)
@@ -251,8 +302,9 @@ def _interval_hold(planner: _Planner, plan: IntervalPlan, before: FloatArray, ce
             bearing = before[0] - side * rng.uniform(60, 100)
         bearing = float(np.clip(bearing, -80, 80))
         distance = rng.uniform(7.0, 16.0)
-        ground = centre[:2] + distance * np.array([math.sin(math.radians(bearing)),
-                                                   math.cos(math.radians(bearing))])
+        ground = centre[:2] + distance * np.array(
+            [math.sin(math.radians(bearing)), math.cos(math.radians(bearing))]
+        )
         ground[1] = max(ground[1], 6.0)
         added = standing_group(rng, int(rng.integers(3, 8)), ground, planner.n_frames, fps)
         middle = added.positions[:, frames].mean(axis=0)
@@ -286,8 +338,10 @@ def _swing(before: FloatArray, hold: FloatArray, after: FloatArray) -> FloatArra
     out_frames = int(np.clip(round(0.18 * length), 3, 9))
     back_frames = int(np.clip(round(0.18 * length), 3, 9))
     result = hold.copy()
-    for count, start_pose, end_index, reverse in ((out_frames, before, out_frames, False),
-                                                  (back_frames, after, length - back_frames - 1, True)):
+    for count, start_pose, end_index, reverse in (
+        (out_frames, before, out_frames, False),
+        (back_frames, after, length - back_frames - 1, True),
+    ):
         for step in range(count):
             if reverse:
                 row = length - count + step

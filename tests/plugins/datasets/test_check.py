@@ -145,7 +145,12 @@ def test_target_ids_must_be_positive_integers(tmp_path: Path, bad_id: int) -> No
     text = (video / "gt.csv").read_text().replace("\n1,2,", f"\n1,{bad_id},")
     (video / "gt.csv").write_text(text)
     report = check_dataset(tmp_path / "data")
-    line = text.splitlines().index(next(row for row in text.splitlines() if row.startswith(f"1,{bad_id},"))) + 1
+    line = (
+        text.splitlines().index(
+            next(row for row in text.splitlines() if row.startswith(f"1,{bad_id},"))
+        )
+        + 1
+    )
     assert any(
         f"gt.csv: line {line}: id {bad_id} is not a positive integer" in problem
         for problem in report.problems

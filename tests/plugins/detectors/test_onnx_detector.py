@@ -149,7 +149,9 @@ def test_model_input_shape_is_checked_at_validation(
     nhwc = make_constant_model(tmp_path / "nhwc.onnx", {"rows": np.zeros((1, 1, 6))}, [1, 7, 5, 1])
     with pytest.raises(UserError, match=r"\[1, 7, 5, 1\].*expected \(1, H, W, 3\)"):
         OnnxDetector(OnnxDetectorParams(model=str(nhwc), layout="NHWC"))
-    fixed = make_constant_model(tmp_path / "fixed.onnx", {"rows": np.zeros((1, 1, 6))}, [1, 3, 64, 64])
+    fixed = make_constant_model(
+        tmp_path / "fixed.onnx", {"rows": np.zeros((1, 1, 6))}, [1, 3, 64, 64]
+    )
     with pytest.raises(UserError, match=r"input_width 32.*64"):
         OnnxDetector(OnnxDetectorParams(model=str(fixed), input_width=32))
     # A model that fits runs on a frame.

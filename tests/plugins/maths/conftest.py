@@ -13,7 +13,8 @@ def person_image(
     skin-coloured head patch unless ``head`` is False."""
     height, width = shape
     background = cv2.resize(
-        rng.integers(60, 200, size=(8, 4, 3), dtype=np.uint8), (width, height),
+        rng.integers(60, 200, size=(8, 4, 3), dtype=np.uint8),
+        (width, height),
         interpolation=cv2.INTER_LINEAR,
     )
     image = background.copy()

@@ -65,8 +65,9 @@ def test_embedding_log_of_standard_gaussian_is_zero_and_matches_scipy() -> None:
     embedded = np.block([[covariance + np.outer(mean, mean), mean[:, None]], [mean[None], 1.0]])
     embedded /= np.linalg.det(covariance) ** (1 / 4)
     expected = half_vectorise(np.real(logm(embedded)))
-    np.testing.assert_allclose(gaussian_embedding_log(mean[None], covariance[None])[0], expected,
-                               atol=1e-8)
+    np.testing.assert_allclose(
+        gaussian_embedding_log(mean[None], covariance[None])[0], expected, atol=1e-8
+    )
 
 
 def test_patch_gaussians_match_direct_statistics() -> None:

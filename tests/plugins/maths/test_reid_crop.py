@@ -86,8 +86,11 @@ def test_same_people_are_ranked_first_across_frames() -> None:
     height, width = 540, 960
     count = 5
     looks = [
-        (tuple(int(v) for v in rng.integers(0, 256, 3)),
-         tuple(int(v) for v in rng.integers(0, 256, 3)), int(rng.integers(4, 12)))
+        (
+            tuple(int(v) for v in rng.integers(0, 256, 3)),
+            tuple(int(v) for v in rng.integers(0, 256, 3)),
+            int(rng.integers(4, 12)),
+        )
         for _ in range(count)
     ]
     backdrop = cv2.resize(rng.integers(40, 120, (9, 16, 3), dtype=np.uint8), (width, height))

@@ -26,7 +26,10 @@ def test_render_on_a_full_disk_fails_in_one_line(tmp_path: Path) -> None:
     )  # fmt: skip
     runs = tmp_path / "runs"
     pipeline = REPO / "pipelines" / "kalman1-tr-oracle.yaml"
-    assert main(["run", str(pipeline), "--input", str(tmp_path / "data"), "--output", str(runs), "-q"]) == 0
+    assert (
+        main(["run", str(pipeline), "--input", str(tmp_path / "data"), "--output", str(runs), "-q"])
+        == 0
+    )
     out = tmp_path / "render.mp4"
     done = subprocess.run(
         [sys.executable, "-m", "trackfw.cli", "render", str(runs / "clip"), "--out", str(out)],

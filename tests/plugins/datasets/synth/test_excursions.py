@@ -44,7 +44,10 @@ def test_a_leaving_target_is_absent_from_the_ground_truth_while_away(seed: int) 
             left += 1
             target = excursion["id"]
             leaves, (away_first, away_last), back = (
-                excursion["leaves"], excursion["away"], excursion["back"])
+                excursion["leaves"],
+                excursion["away"],
+                excursion["back"],
+            )
             assert 1 <= target <= plan.n_targets
             assert leaves < away_first <= away_last < back <= plan.n_frames
             # 1-based away frames, all informative: the target is seen missing.
@@ -55,7 +58,9 @@ def test_a_leaving_target_is_absent_from_the_ground_truth_while_away(seed: int) 
             assert all((frame, target) not in heads for frame in away)
             # In view before it leaves and again once it is back with its group.
             before = [f for f in range(leaves - 1) if target in simulation.targets.get(f, {})]
-            after = [f for f in range(back, plan.n_frames) if target in simulation.targets.get(f, {})]
+            after = [
+                f for f in range(back, plan.n_frames) if target in simulation.targets.get(f, {})
+            ]
             assert before and after
             # The others stay: only the leaver goes missing on the away frames.
             present = [len(simulation.targets.get(frame, {})) for frame in away]

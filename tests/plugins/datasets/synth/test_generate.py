@@ -109,8 +109,24 @@ def test_cli_writes_a_dataset_and_refuses_to_overwrite(tmp_path: Path) -> None:
     register(dataset_app)
     app.add_typer(dataset_app, name="dataset")
     out = tmp_path / "data"
-    arguments = ["dataset", "synth", "--out", str(out), "--size", "160x90", "--frames", "60",
-                 "--videos", "2", "--jobs", "1", "--format", "jpg", "--seed", "9"]
+    arguments = [
+        "dataset",
+        "synth",
+        "--out",
+        str(out),
+        "--size",
+        "160x90",
+        "--frames",
+        "60",
+        "--videos",
+        "2",
+        "--jobs",
+        "1",
+        "--format",
+        "jpg",
+        "--seed",
+        "9",
+    ]
     result = CliRunner().invoke(app, arguments)
     assert result.exit_code == 0, result.output
     assert "Done: 2 video(s)" in result.output and " s" in result.output

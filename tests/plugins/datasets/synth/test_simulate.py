@@ -63,7 +63,9 @@ def test_pose_differs_after_the_interval(kind: str) -> None:
     simulation = simulate(_small_plan(kind, seed=11))
     before, after = simulation.motion.segment_offsets
     pan_change = abs(after[0] - before[0])
-    assert pan_change > 1.0 or abs(after[3] / before[3] - 1) > 0.05 or abs(after[2] - before[2]) > 1.0
+    assert (
+        pan_change > 1.0 or abs(after[3] / before[3] - 1) > 0.05 or abs(after[2] - before[2]) > 1.0
+    )
     assert abs(after[2] - before[2]) <= 10.0 + 1e-9
     assert 0.7 - 1e-9 <= after[3] / before[3] <= 1.4 + 1e-9
     interval = simulation.intervals[0]
@@ -73,9 +75,11 @@ def test_pose_differs_after_the_interval(kind: str) -> None:
     else:
         assert np.allclose(poses[interval.b, 4:7], poses[interval.a, 4:7])
     # The swing is fast: the camera turns further inside the interval than across it.
-    inside = poses[interval.a + 1: interval.b]
-    assert np.max(np.abs(inside[:, 1] - poses[interval.a, 1])) > 10 or np.max(
-        np.abs((inside[:, 0] - poses[interval.a, 0] + 180) % 360 - 180)) > 30
+    inside = poses[interval.a + 1 : interval.b]
+    assert (
+        np.max(np.abs(inside[:, 1] - poses[interval.a, 1])) > 10
+        or np.max(np.abs((inside[:, 0] - poses[interval.a, 0] + 180) % 360 - 180)) > 30
+    )
 
 
 def test_group_interval_looks_at_another_group() -> None:
@@ -109,7 +113,9 @@ def test_trajectory_file_is_resampled_to_the_frame_rate(tmp_path: Path) -> None:
     rows = []
     for step in range(30):  # 2.5 Hz: frame numbers step by 10
         for person in range(6):
-            rows.append(f"{step * 10}\t{person + 1}.0\t{person * 0.8 + 0.5 * step:.2f}\t{person % 2:.2f}")
+            rows.append(
+                f"{step * 10}\t{person + 1}.0\t{person * 0.8 + 0.5 * step:.2f}\t{person % 2:.2f}"
+            )
     path = tmp_path / "walk.txt"
     path.write_text("\n".join(rows) + "\n", encoding="utf-8")
     assert len(read_trajectory_file(path)) == 6
@@ -133,8 +139,9 @@ def test_eth_hotel_trajectories_drive_a_video(shared_data: Path) -> None:
 
 
 def test_pose_change_limits_are_configurable() -> None:
-    limits = WearerConfig(max_pan_change=8.0, min_pan_change=4.0, max_roll_change=2.0,
-                          scale_range=(0.95, 1.05))
+    limits = WearerConfig(
+        max_pan_change=8.0, min_pan_change=4.0, max_roll_change=2.0, scale_range=(0.95, 1.05)
+    )
     for kind in ("sky", "group", "path"):
         simulation = simulate(replace(_small_plan(kind, seed=21), wearer=limits))
         before, after = simulation.motion.segment_offsets
