@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -42,6 +43,24 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO[An
     except BaseException:
         with suppress(FileNotFoundError):
             os.unlink(temporary)
+        raise
+
+
+@contextmanager
+def replacing_folder(partial: Path, final: Path) -> Iterator[Path]:
+    """Fill the folder ``partial`` in the block, then rename it to ``final`` in one step.
+
+    An older ``final`` is removed just before the rename. If anything raises (Ctrl-C included),
+    ``partial`` is removed and ``final`` left as it was, so an interrupted writer never leaves a
+    folder that looks finished.
+    """
+    try:
+        yield partial
+        if final.exists():
+            shutil.rmtree(final)
+        os.replace(partial, final)
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)
         raise
 
 

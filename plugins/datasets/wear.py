@@ -29,6 +29,7 @@ import shutil
 from collections.abc import Callable
 from pathlib import Path
 
+from trackfw.atomic import replacing_folder
 from trackfw.errors import UserError
 from trackfw_plugins.datasets.mot import load_mot_sequence
 from trackfw_plugins.datasets.wear_camera import (
@@ -123,13 +124,7 @@ def generate_dataset(
             if progress is not None:
                 progress(name, done, sequence.n_frames)
 
-        try:
+        with replacing_folder(partial, final):
             render_video(sequence, plan, settings, partial, preview_folder, report)
-            if final.exists():
-                shutil.rmtree(final)
-            os.replace(partial, final)
-        except BaseException:
-            shutil.rmtree(partial, ignore_errors=True)
-            raise
         written.append(final)
     return written

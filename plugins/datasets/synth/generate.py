@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from trackfw.arrays import ImageArray
-from trackfw.atomic import atomic_open, write_text
+from trackfw.atomic import atomic_open, replacing_folder, write_text
 from trackfw.dataset import IMAGE_FOLDER, META_FILE, POSES_FILE, VIDEO_FILE, write_meta
 from trackfw.errors import UserError
 from trackfw.formats.annotations import write_annotations
@@ -408,7 +408,7 @@ def generate_video(
         raise UserError(f"{final}: already exists; use --force to replace it.")
     out_dir.mkdir(parents=True, exist_ok=True)
     temporary = Path(tempfile.mkdtemp(prefix=f".{plan.name}.", suffix=".tmp", dir=out_dir))
-    try:
+    with replacing_folder(temporary, final):
         simulation = simulate(plan)
         wanted = _preview_frames(simulation) if preview_dir is not None else {}
         kept: dict[int, ImageArray] = {}
@@ -457,12 +457,6 @@ def generate_video(
             kind = plan.intervals[0].kind if plan.intervals else "none"
             _write_png(preview_dir / f"{plan.name}_{kind}.png", np.concatenate(panels, axis=1))
         temporary.chmod(0o755)  # mkdtemp makes it private; a dataset folder is not
-        if final.exists():
-            shutil.rmtree(final)
-        os.replace(temporary, final)
-    except BaseException:
-        shutil.rmtree(temporary, ignore_errors=True)
-        raise
     return VideoResult(
         plan.name, final, plan.n_frames, len(plan.intervals), time.perf_counter() - started
     )
