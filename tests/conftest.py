@@ -22,6 +22,21 @@ stages:
 """
 
 
+def decode_video(path: Path) -> list[Any]:
+    """Every frame of the video file at ``path``, decoded with OpenCV (``(H, W, 3)`` BGR)."""
+    import cv2
+
+    capture = cv2.VideoCapture(str(path))
+    frames = []
+    while True:
+        ok, frame = capture.read()
+        if not ok:
+            break
+        frames.append(frame)
+    capture.release()
+    return frames
+
+
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     """Path of ../shared/data; the test is skipped when a fresh checkout does not have it."""

@@ -57,6 +57,15 @@ def folders(
     return dataset, runs
 
 
+@pytest.fixture
+def walkers(tmp_path: Path, make_video: Callable[..., Path]) -> tuple[Path, dict]:
+    """Dataset folder with one 30-frame video ``v`` of three walkers, INTERVAL info-less; and
+    its ground truth."""
+    truth = _walk(30, skip=INTERVAL)
+    make_video(tmp_path / "dataset", "v", truth, n_frames=30, intervals=[INTERVAL])
+    return tmp_path / "dataset", truth
+
+
 def test_per_video_mean_and_pooled_rows(folders: tuple[Path, Path]) -> None:
     dataset, runs = folders
     evaluation = evaluate_dataset(
@@ -94,11 +103,12 @@ def test_per_video_mean_and_pooled_rows(folders: tuple[Path, Path]) -> None:
 
 
 def test_output_on_infoless_frames_is_false_positive(
-    tmp_path: Path, make_video: Callable[..., Path], make_run: Callable[..., Path]
+    walkers: tuple[Path, dict],
+    tmp_path: Path,
+    make_video: Callable[..., Path],
+    make_run: Callable[..., Path],
 ) -> None:
-    dataset, runs = tmp_path / "dataset", tmp_path / "runs"
-    truth = _walk(30, skip=INTERVAL)
-    make_video(dataset, "v", truth, n_frames=30, intervals=[INTERVAL])
+    (dataset, truth), runs = walkers, tmp_path / "runs"
     tracks = {**truth, 11: {1: (400.0, 500.0)}, 12: {1: (400.0, 500.0)}}
     make_run(runs, "v", tracks, n_frames=30, infoless_frames=range(10, 15))
     evaluation = evaluate_dataset(dataset, runs)
@@ -116,11 +126,9 @@ def test_output_on_infoless_frames_is_false_positive(
 
 
 def test_missed_target_changes_counts_exactly(
-    tmp_path: Path, make_video: Callable[..., Path], make_run: Callable[..., Path]
+    walkers: tuple[Path, dict], tmp_path: Path, make_run: Callable[..., Path]
 ) -> None:
-    dataset, runs = tmp_path / "dataset", tmp_path / "runs"
-    truth = _walk(30, skip=INTERVAL)
-    make_video(dataset, "v", truth, n_frames=30, intervals=[INTERVAL])
+    (dataset, truth), runs = walkers, tmp_path / "runs"
     tracks = {
         t: {i: p for i, p in points.items() if not (i == 3 and t == 15)}
         for t, points in truth.items()
@@ -176,11 +184,9 @@ def test_non_positive_distance_is_rejected(folders: tuple[Path, Path]) -> None:
 
 
 def test_a_run_without_a_classifier_has_no_infoless_scores(
-    tmp_path: Path, make_video: Callable[..., Path], make_run: Callable[..., Path]
+    walkers: tuple[Path, dict], tmp_path: Path, make_run: Callable[..., Path]
 ) -> None:
-    dataset, runs = tmp_path / "dataset", tmp_path / "runs"
-    truth = _walk(30, skip=INTERVAL)
-    make_video(dataset, "v", truth, n_frames=30, intervals=[INTERVAL])
+    (dataset, truth), runs = walkers, tmp_path / "runs"
     make_run(runs, "v", truth, n_frames=30, classifier=False)
     evaluation = evaluate_dataset(dataset, runs)
     for row in (evaluation.video_rows()[0], evaluation.mean_row(), evaluation.pooled_row()):

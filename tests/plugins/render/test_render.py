@@ -18,6 +18,8 @@ from trackfw_plugins.render.draw import (
     load_run_data,
 )
 
+from ...conftest import decode_video
+
 REPO = Path(__file__).resolve().parents[3]
 
 
@@ -41,18 +43,6 @@ def run_dir(tmp_path: Path) -> Path:
     return out
 
 
-def _frames(path: Path) -> list[np.ndarray]:
-    capture = cv2.VideoCapture(str(path))
-    frames = []
-    while True:
-        ok, image = capture.read()
-        if not ok:
-            break
-        frames.append(image)
-    capture.release()
-    return frames
-
-
 def test_render_writes_frames_panels_and_pngs(run_dir: Path, tmp_path: Path, capsys) -> None:
     out = tmp_path / "render" / "clip.mp4"
     code = main(
@@ -71,7 +61,7 @@ def test_render_writes_frames_panels_and_pngs(run_dir: Path, tmp_path: Path, cap
     assert code == 0, capsys.readouterr().err
     data = load_run_data(run_dir / "clip")
     assert len(data.gaps) == 1
-    frames = _frames(out)
+    frames = decode_video(out)
     assert len(frames) == 60 + 5  # every video frame plus the held panel
     assert frames[0].shape == (240, 320, 3)
     pngs = sorted(path.name for path in out.parent.glob("*.png"))
@@ -122,7 +112,7 @@ def test_render_names_the_videos_when_several_runs_are_present(
     assert main(["render", str(run_dir)]) == 2
     assert "choose one with --video" in capsys.readouterr().err
     assert main(["render", str(run_dir), "--video", "other", "--panel-frames", "0"]) == 0
-    assert len(_frames(run_dir / "other" / "render.mp4")) == 20
+    assert len(decode_video(run_dir / "other" / "render.mp4")) == 20
 
 
 def test_png_frame_out_of_range_is_an_error_naming_the_valid_range(

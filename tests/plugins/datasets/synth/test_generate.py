@@ -19,24 +19,14 @@ from trackfw_plugins.datasets.synth.cli import parse_size, register, run_synth
 from trackfw_plugins.datasets.synth.generate import generate_demo, generate_video
 from trackfw_plugins.datasets.synth.presets import IntervalPlan, custom_plan
 
+from ....conftest import decode_video
+
 TEXT_FILES = ("gt.csv", "heads.csv", "intervals.csv", "meta.json", "poses.csv")
 
 
 def _tiny_plan(kind: str = "group"):
     plan = custom_plan(4, videos=1, frames=60, intervals=1, width=192, height=108)[0]
     return replace(plan, intervals=(IntervalPlan(start=20, length=18, kind=kind),))
-
-
-def _decode(path: Path) -> list[np.ndarray]:
-    capture = cv2.VideoCapture(str(path))
-    frames = []
-    while True:
-        ok, frame = capture.read()
-        if not ok:
-            break
-        frames.append(frame)
-    capture.release()
-    return frames
 
 
 def test_tiny_video_round_trips_through_load_video(tmp_path: Path) -> None:
@@ -50,7 +40,7 @@ def test_tiny_video_round_trips_through_load_video(tmp_path: Path) -> None:
     assert len(targets[0]) == plan.n_targets
     assert not any(frame in targets for frame in range(20, 38))
     assert video.meta["source"] == "synth" and video.meta["seed"] == plan.seed
-    frames = _decode(folder / "video.mp4")
+    frames = decode_video(folder / "video.mp4")
     assert len(frames) == 60 and frames[0].shape == (108, 192, 3)
     heads = read_heads(folder / "heads.csv", 60)
     assert set(heads) >= set(targets)
@@ -100,7 +90,7 @@ def test_demo_clip(tmp_path: Path) -> None:
     assert video.ground_truth is not None
     assert len(video.ground_truth.targets[0]) == 6
     assert [(i.a + 2, i.b, i.kind) for i in video.ground_truth.intervals] == [(61, 90, "sky")]
-    assert len(_decode(folder / "video.mp4")) == 150
+    assert len(decode_video(folder / "video.mp4")) == 150
 
 
 def test_cli_writes_a_dataset_and_refuses_to_overwrite(tmp_path: Path) -> None:
