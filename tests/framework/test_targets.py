@@ -219,41 +219,16 @@ def test_region_and_targets_from_the_command_line_run(
 
     heads = _heads(in_bad_input_workspace / "data" / "v1", 0)
     x, y = heads[0]
-    box = f"{x - 5},{y - 5},10,10"
-    assert (
-        main(
-            [
-                "run",
-                "pipeline.yaml",
-                "-i",
-                "data/v1",
-                "-o",
-                str(tmp_path / "a"),
-                "-q",
-                "--region",
-                box,
-            ]
+
+    def run(out: str, *options: str) -> int:
+        return main(
+            ["run", "pipeline.yaml", "-i", "data/v1", "-o", str(tmp_path / out), "-q", *options]
         )
-        == 0
-    )
+
+    assert run("a", "--region", f"{x - 5},{y - 5},10,10") == 0
     assert '"initialised_from": "region"' in (tmp_path / "a" / "v1" / "summary.json").read_text()
     path = tmp_path / "t.csv"
     path.write_text(f"frame,id,x,y\n4,9,{x},{y}\n", encoding="utf-8")
-    assert (
-        main(
-            [
-                "run",
-                "pipeline.yaml",
-                "-i",
-                "data/v1",
-                "-o",
-                str(tmp_path / "b"),
-                "-q",
-                "--targets",
-                str(path),
-            ]
-        )
-        == 0
-    )
+    assert run("b", "--targets", str(path)) == 0
     tracks = (tmp_path / "b" / "v1" / "tracks.txt").read_text().splitlines()
     assert tracks[0].startswith("4,9,") and {line.split(",")[1] for line in tracks} == {"9"}
