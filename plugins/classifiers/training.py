@@ -407,20 +407,8 @@ def classify_online(
     Returns:
         ``(T,)`` probabilities and ``(T,)`` info-less decisions.
     """
-    probabilities, decisions, _ = replay(model, video, threshold, c_max, rules)
+    probabilities, decisions, _, _ = replay_with_latch(model, video, threshold, c_max, rules)
     return probabilities, decisions
-
-
-def replay(
-    model: SvmModel,
-    video: VideoMeasurements,
-    threshold: float | None = None,
-    c_max: float | None = None,
-    rules: OnlineRules | None = None,
-) -> tuple[FloatArray, BoolArray, FloatArray]:
-    """:func:`classify_online` that also returns the ``(T, 11)`` features the stage saw."""
-    probabilities, decisions, features, _ = replay_with_latch(model, video, threshold, c_max, rules)
-    return probabilities, decisions, features
 
 
 def replay_with_latch(
@@ -430,7 +418,8 @@ def replay_with_latch(
     c_max: float | None = None,
     rules: OnlineRules | None = None,
 ) -> tuple[FloatArray, BoolArray, FloatArray, BoolArray]:
-    """:func:`replay` plus a ``(T,)`` mask of the frames the turn latch decided (not the SVM)."""
+    """:func:`classify_online` that also returns the ``(T, 11)`` features the stage saw and a
+    ``(T,)`` mask of the frames the turn latch decided (not the SVM)."""
     limit = float(model.features.get("c_max", DEFAULT_C_MAX)) if c_max is None else c_max
     assembler = FeatureAssembler(limit)
     if rules is None:
