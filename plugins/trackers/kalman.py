@@ -191,10 +191,13 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         life = self.life
         expected = life.expected(inactive, self.bank.positions, anchors)
         free = np.setdiff1d(np.arange(len(detections)), taken)
-        cost = life.reacquire_cost(
+        cost, entering = life.reacquire_cost(
             t, expected, inactive, detections.points[free], box_sides(detections)[free]
         )
-        cost[self.memory.veto(self.image, inactive, detections, free, cost <= 1.0)] = np.inf
+        # Through the border only with a look that agrees: without a descriptor (or with
+        # 'none') a target never re-enters away from its expected place.
+        veto = self.memory.veto(self.image, inactive, detections, free, cost <= 1.0, entering)
+        cost[veto | (entering & (not self.memory.active or self.image is None))] = np.inf
         columns = hungarian(cost, 1.0)
         hit = columns >= 0
         found, chosen = inactive[hit], free[columns[hit]]

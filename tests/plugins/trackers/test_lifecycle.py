@@ -210,3 +210,149 @@ def test_a_match_at_b_out_of_line_with_the_groups_scale_is_tentative() -> None:
     at_b = GROUP * 1.6
     tracker.reinitialise(40, at_b, np.array([0, 1, 2]), _seen(at_b, [48.0, 48.0, 100.0]))
     assert tracker.statuses() == ["tracked", "tracked", "tentative"]
+
+
+def _walk_out_right(tracker: Any, group: np.ndarray, sizes: list[float]) -> int:
+    """Target 1 (row 0) walks out through the right edge; the others stay. Returns the frame."""
+    x, t = float(group[0, 0]), 0
+    while x < 1279:
+        t, x = t + 1, x + 8.0
+        shown = np.vstack([[x, group[0, 1]], group[1:]]) if x < 1280 else group[1:]
+        tracker.step(t, _seen(shown, sizes if x < 1280 else sizes[1:]))
+    for _ in range(3):
+        t += 1
+        tracker.step(t, _seen(group[1:], sizes[1:]))
+    assert tracker.statuses()[0] == "out-of-view"
+    return t
+
+
+class _AgreeingLooks:
+    """An appearance memory whose descriptors always agree (the border rule needs one)."""
+
+    active = True
+
+    def remember(self, *args: Any) -> None:
+        pass
+
+    def veto(
+        self,
+        image: Any,
+        targets: Any,
+        detections: Any,
+        columns: Any,
+        candidates: Any,
+        entering: Any,
+    ) -> Any:
+        return np.zeros(candidates.shape, dtype=bool)
+
+
+def _edge_tracker(looks: bool = True, **lifecycle: Any) -> Any:
+    params = {"lifecycle": {"reentry_margin_px_at_1080": 60.0, **lifecycle}}
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    original = tracker.initialise
+
+    def initialise(*args: Any) -> None:
+        original(*args)
+        if looks:
+            tracker.memory = _AgreeingLooks()
+            tracker.image = np.zeros((720, 1280, 3), dtype=np.uint8)
+
+    tracker.initialise = initialise
+    return tracker
+
+
+def test_returner_reacquired_through_its_exit_edge_far_from_the_exit_point() -> None:
+    # Target 1 leaves through the right edge at y = 300 and comes back 4 s later through the
+    # same edge 200 px lower (the camera has tilted meanwhile; its neighbours did not move):
+    # far beyond the 80 px gate around where it left, within the re-entry gate along that edge.
+    tracker = _edge_tracker()
+    group = np.array([[1200.0, 300.0], [600.0, 300.0], [700.0, 320.0]])
+    tracker.initialise(0, np.array([1, 2, 3]), group)
+    t = _walk_out_right(tracker, group, [30.0, 30.0, 30.0])
+    for _ in range(100):  # 4 s away
+        t += 1
+        tracker.step(t, _seen(group[1:]))
+    assert tracker.statuses()[0] == "out-of-view"
+    t += 1
+    tracker.step(t, _seen(np.vstack([group[1:], [[1275.0, 500.0]]])))
+    assert tracker.statuses() == ["tracked"] * 3
+    assert tracker.states()[0].target_id == 1 and tracker.states()[0].matched_detection == 2
+
+
+def test_reentry_needs_the_border_near_the_door() -> None:
+    # After the same exit, a bystander standing 100 px inside the right edge, and one entering
+    # through the left edge (1270 px from the door), are not target 1: it stays out of view.
+    tracker = _edge_tracker()
+    group = np.array([[1200.0, 300.0], [600.0, 300.0], [700.0, 320.0]])
+    tracker.initialise(0, np.array([1, 2, 3]), group)
+    t = _walk_out_right(tracker, group, [30.0, 30.0, 30.0])
+    for _ in range(100):
+        t += 1
+        tracker.step(t, _seen(np.vstack([group[1:], [[1180.0, 400.0], [3.0, 300.0]]])))
+    assert tracker.statuses() == ["out-of-view", "tracked", "tracked"]
+    with_margin = _edge_tracker(reentry_margin_px_at_1080=200.0)
+    with_margin.initialise(0, np.array([1, 2, 3]), group)
+    t = _walk_out_right(with_margin, group, [30.0, 30.0, 30.0])
+    for _ in range(100):
+        t += 1
+        with_margin.step(t, _seen(np.vstack([group[1:], [[1180.0, 400.0]]])))
+    assert with_margin.statuses()[0] == "tracked"  # 100 px inside is within a 133 px margin
+
+
+def test_returner_size_compared_with_the_size_expected_at_its_place() -> None:
+    # Heads grow with the image row: 20 px at y = 200, 40 px at y = 600 (line 10 + 0.05 y).
+    # Target 1 leaves through the right edge at y = 200 with a 20 px head and returns at
+    # y = 600: a 40 px head fits there (2x its exit size), a 20 px one does not.
+    group = np.array([[1200.0, 200.0], [600.0, 200.0], [700.0, 600.0]])
+    sizes = [20.0, 20.0, 40.0]
+    returns = {}
+    for side in (40.0, 20.0):
+        tracker = _edge_tracker(reentry_max_px_at_1080=1200.0)
+        tracker.initialise(0, np.array([1, 2, 3]), group)
+        t = _walk_out_right(tracker, group, sizes)
+        for _ in range(100):
+            t += 1
+            tracker.step(t, _seen(group[1:], sizes[1:]))
+        t += 1
+        tracker.step(t, _seen(np.vstack([group[1:], [[1275.0, 600.0]]]), [*sizes[1:], side]))
+        returns[side] = tracker.statuses()[0]
+    assert returns == {40.0: "tracked", 20.0: "out-of-view"}
+
+
+def test_size_line_flat_for_one_head_and_fitted_for_several() -> None:
+    from trackfw_plugins.trackers.lifecycle import size_line
+
+    assert np.isnan(size_line(np.array([]), np.array([]))[0])
+    assert size_line(np.array([100.0]), np.array([30.0])).tolist() == [30.0, 0.0]
+    a, b = size_line(np.array([100.0, 200.0, 300.0, 400.0]), np.array([15.0, 20.0, 25.0, np.nan]))
+    assert np.isclose(a, 10.0) and np.isclose(b, 0.05)
+
+
+def test_returner_reacquired_round_the_corner() -> None:
+    # Out through the right edge at y = 650, back 4 s later through the bottom edge 150 px left.
+    tracker = _edge_tracker()
+    group = np.array([[1200.0, 650.0], [600.0, 300.0], [700.0, 320.0]])
+    tracker.initialise(0, np.array([1, 2, 3]), group)
+    t = _walk_out_right(tracker, group, [30.0, 30.0, 30.0])
+    for _ in range(100):
+        t += 1
+        tracker.step(t, _seen(group[1:]))
+    t += 1
+    tracker.step(t, _seen(np.vstack([group[1:], [[1130.0, 715.0]]])))
+    assert tracker.statuses() == ["tracked"] * 3
+
+
+def test_no_reentry_through_the_border_without_a_look() -> None:
+    # The same return as above with appearance 'none': on TUD virtual-wearer videos people keep
+    # entering through the edge a target left by, so position alone never brings it back there.
+    tracker = _edge_tracker(looks=False)
+    group = np.array([[1200.0, 300.0], [600.0, 300.0], [700.0, 320.0]])
+    tracker.initialise(0, np.array([1, 2, 3]), group)
+    t = _walk_out_right(tracker, group, [30.0, 30.0, 30.0])
+    for _ in range(100):
+        t += 1
+        tracker.step(t, _seen(group[1:]))
+    t += 1
+    tracker.step(t, _seen(np.vstack([group[1:], [[1275.0, 500.0]]])))
+    assert tracker.statuses()[0] == "out-of-view"
