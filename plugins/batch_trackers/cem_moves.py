@@ -21,7 +21,7 @@ share is positive. See ``docs/algorithms/batch-trackers.md#cem``.
 from __future__ import annotations
 
 import heapq
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -293,43 +293,50 @@ def _best_cut(
     return True
 
 
+def _target_ends(state: CemState) -> Iterator[tuple[int, bool, int, FloatArray]]:
+    """Each live target's two ends in turn: ``(index, at_end, start, points)``.
+
+    The target is read again for its second end, which a move on the first may have changed.
+    """
+    for index in state.live():
+        for at_end in (False, True):
+            start, points = state.target(index)
+            yield index, at_end, start, points
+
+
 def grow_move(state: CemState) -> bool:
     """Extend each end by the best of 1 .. 50 frames along its last velocity, if that helps."""
     fired = False
-    for index in state.live():
-        for forward in (False, True):
-            start, points = state.target(index)
-            room = state.n_frames - start - len(points) if forward else start
-            steps = min(state.params.max_extension, room)
-            if len(points) < 2 or steps <= 0:
-                continue
-            extra = np.arange(steps + 1)
-            ahead = np.arange(1, steps + 1)[:, None]
-            if forward:
-                grown = np.vstack([points, points[-1] + ahead * (points[-1] - points[-2])])
-                cuts = (np.zeros_like(extra), len(points) - 1 + extra)
-                fired |= _best_cut(state, index, start, grown, cuts)
-            else:
-                before = (points[0] + ahead * (points[0] - points[1]))[::-1]
-                grown = np.vstack([before, points])
-                cuts = (steps - extra, np.full_like(extra, len(grown) - 1))
-                fired |= _best_cut(state, index, start - steps, grown, cuts)
+    for index, forward, start, points in _target_ends(state):
+        room = state.n_frames - start - len(points) if forward else start
+        steps = min(state.params.max_extension, room)
+        if len(points) < 2 or steps <= 0:
+            continue
+        extra = np.arange(steps + 1)
+        ahead = np.arange(1, steps + 1)[:, None]
+        if forward:
+            grown = np.vstack([points, points[-1] + ahead * (points[-1] - points[-2])])
+            cuts = (np.zeros_like(extra), len(points) - 1 + extra)
+            fired |= _best_cut(state, index, start, grown, cuts)
+        else:
+            before = (points[0] + ahead * (points[0] - points[1]))[::-1]
+            grown = np.vstack([before, points])
+            cuts = (steps - extra, np.full_like(extra, len(grown) - 1))
+            fired |= _best_cut(state, index, start - steps, grown, cuts)
     return fired
 
 
 def shrink_move(state: CemState) -> bool:
     """Cut the best of 1 .. 50 frames from each end (keeping 3), if that helps."""
     fired = False
-    for index in state.live():
-        for from_end in (False, True):
-            start, points = state.target(index)
-            steps = min(state.params.max_extension, len(points) - MIN_LENGTH)
-            if steps <= 0:
-                continue
-            cut = np.arange(steps + 1)
-            whole = np.full_like(cut, len(points) - 1)
-            cuts = (np.zeros_like(cut), whole - cut) if from_end else (cut, whole)
-            fired |= _best_cut(state, index, start, points, cuts)
+    for index, from_end, start, points in _target_ends(state):
+        steps = min(state.params.max_extension, len(points) - MIN_LENGTH)
+        if steps <= 0:
+            continue
+        cut = np.arange(steps + 1)
+        whole = np.full_like(cut, len(points) - 1)
+        cuts = (np.zeros_like(cut), whole - cut) if from_end else (cut, whole)
+        fired |= _best_cut(state, index, start, points, cuts)
     return fired
 
 

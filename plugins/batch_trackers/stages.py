@@ -11,7 +11,7 @@ machine). See
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal
+from typing import Literal, TypeVar
 
 import numpy as np
 from pydantic import ConfigDict, Field
@@ -60,6 +60,9 @@ def video_detections(
     )
 
 
+P = TypeVar("P", bound=BatchInputParams)
+
+
 class DpnmsStageParams(BatchInputParams, DpnmsParams):
     """DPNMS settings and its input."""
 
@@ -84,57 +87,67 @@ class GtcsaStageParams(BatchInputParams, GtcsaParams):
     """GTCSA-like settings and its input (boxes and scores are not used)."""
 
 
-class DpnmsTracker(BatchTracker[DpnmsStageParams]):
+class _TableTracker(BatchTracker[P]):
+    """A batch tracker whose core takes the detections as one table, BLAS on one thread."""
+
+    def track(self, detections: Sequence[Detections], video: VideoContext) -> Tracks:
+        table = video_detections(detections, video, self.params)
+        with single_threaded_blas():
+            return self.solve(table, video)
+
+    def solve(self, table: VideoDetections, video: VideoContext) -> Tracks:
+        """Run the algorithm core on the video's detection table."""
+        raise NotImplementedError
+
+
+class DpnmsTracker(_TableTracker[DpnmsStageParams]):
     """DPNMS: greedy dynamic-programming min-cost flow with NMS in the loop (Pirsiavash 2011)."""
 
     name = "dpnms"
 
-    def track(self, detections: Sequence[Detections], video: VideoContext) -> Tracks:
-        with single_threaded_blas():
-            return track_dpnms(video_detections(detections, video, self.params), self.params)
+    def solve(self, table: VideoDetections, video: VideoContext) -> Tracks:
+        """DPNMS on the table."""
+        return track_dpnms(table, self.params)
 
 
-class ByteTrackTracker(BatchTracker[ByteTrackStageParams]):
+class ByteTrackTracker(_TableTracker[ByteTrackStageParams]):
     """ByteTrack: two-stage association by detection score (Zhang 2022) on our Kalman filter."""
 
     name = "bytetrack"
 
-    def track(self, detections: Sequence[Detections], video: VideoContext) -> Tracks:
-        table = video_detections(detections, video, self.params)
-        with single_threaded_blas():
-            return track_bytetrack(table, video.fps, self.params)
+    def solve(self, table: VideoDetections, video: VideoContext) -> Tracks:
+        """ByteTrack on the table, its lost buffer in seconds at the video's fps."""
+        return track_bytetrack(table, video.fps, self.params)
 
 
-class SmotTracker(BatchTracker[SmotStageParams]):
+class SmotTracker(_TableTracker[SmotStageParams]):
     """SMOT: tracklets stitched by Hankel-rank dynamics similarity (Dicle 2013)."""
 
     name = "smot"
 
-    def track(self, detections: Sequence[Detections], video: VideoContext) -> Tracks:
-        with single_threaded_blas():
-            return track_smot(video_detections(detections, video, self.params), self.params)
+    def solve(self, table: VideoDetections, video: VideoContext) -> Tracks:
+        """SMOT on the table."""
+        return track_smot(table, self.params)
 
 
-class CemTracker(BatchTracker[CemStageParams]):
+class CemTracker(_TableTracker[CemStageParams]):
     """CEM: continuous energy minimisation with jump moves, started from DPNMS (Milan 2014)."""
 
     name = "cem"
 
-    def track(self, detections: Sequence[Detections], video: VideoContext) -> Tracks:
-        table = video_detections(detections, video, self.params)
-        with single_threaded_blas():
-            return track_cem(table, video.width, video.height, self.params)
+    def solve(self, table: VideoDetections, video: VideoContext) -> Tracks:
+        """CEM on the table, its exclusion terms in the video's frame size."""
+        return track_cem(table, video.width, video.height, self.params)
 
 
-class GtcsaTracker(BatchTracker[GtcsaStageParams]):
+class GtcsaTracker(_TableTracker[GtcsaStageParams]):
     """GTCSA-like groupwise tracking: k-means groups, TPS-RPM within groups (our approximation)."""
 
     name = "gtcsa"
 
-    def track(self, detections: Sequence[Detections], video: VideoContext) -> Tracks:
-        table = video_detections(detections, video, self.params)
-        with single_threaded_blas():
-            return track_gtcsa(table, video.height, self.params)
+    def solve(self, table: VideoDetections, video: VideoContext) -> Tracks:
+        """GTCSA-like tracking on the table, its gate scaled by the frame height."""
+        return track_gtcsa(table, video.height, self.params)
 
 
 BATCH_TRACKERS: tuple[type[BatchTracker[StageParams]], ...] = (  # type: ignore[assignment]
