@@ -15,17 +15,18 @@ Only datasets with heads.csv (every visible head, targets and bystanders) can be
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, fields
-from typing import Self
+from dataclasses import dataclass
 
 import numpy as np
 
 from trackfw.arrays import FloatArray
+from trackfw_plugins.evaluation.clear_mot import FrameObservations
+from trackfw_plugins.maths.confusion import PooledCounts, ratio
 from trackfw_plugins.maths.head_matching import MATCH_RATIO
 
 
 @dataclass
-class CaptureCounts:
+class CaptureCounts(PooledCounts):
     """Reported points and those of them on a bystander, pooled with ``+``.
 
     >>> total = CaptureCounts(reported=10, captured=1) + CaptureCounts(reported=10, captured=3)
@@ -36,22 +37,10 @@ class CaptureCounts:
     reported: int = 0
     captured: int = 0
 
-    def __add__(self, other: Self) -> Self:
-        """Pool two videos' counts."""
-        return type(self)(
-            **{f.name: getattr(self, f.name) + getattr(other, f.name) for f in fields(self)}
-        )
-
     @property
     def share(self) -> float:
         """Captured / reported; NaN when nothing was reported."""
-        return self.captured / self.reported if self.reported else float("nan")
-
-
-def _points(positions: Mapping[int, Sequence[float]]) -> FloatArray:
-    if not positions:
-        return np.zeros((0, 2))
-    return np.asarray([position[:2] for position in positions.values()], dtype=np.float64)
+        return ratio(self.captured, self.reported)
 
 
 def frame_captured(
@@ -59,7 +48,8 @@ def frame_captured(
     targets: FloatArray,
     heads: FloatArray,
     distance_px: float,
-    ratio: float = MATCH_RATIO,
+    match_ratio: float = MATCH_RATIO,
+    target_distances: FloatArray | None = None,
 ) -> int:
     """How many reported points of one frame sit on a bystander.
 
@@ -68,7 +58,8 @@ def frame_captured(
         targets: ``(N, 2)`` ground-truth target points of the frame.
         heads: ``(M, 3)`` every visible head ``(x, y, head_size)``.
         distance_px: a reported point this close to a target point is that target's.
-        ratio: a point within this share of a head's size of its centre is on that head.
+        match_ratio: a point within this share of a head's size of its centre is on that head.
+        target_distances: ``(N, K)`` target-to-reported distances when already computed.
 
     >>> import numpy as np
     >>> heads = np.array([[0.0, 0.0, 40.0], [200.0, 0.0, 40.0]])
@@ -78,46 +69,45 @@ def frame_captured(
     """
     if len(reported) == 0 or len(heads) == 0:
         return 0
-    sizes = heads[:, 2]
+    bystanders = heads
     if len(targets):
         to_targets = np.linalg.norm(heads[None, :, :2] - targets[:, None, :], axis=2)
-        bystanders = heads[~(to_targets <= ratio * sizes[None, :]).any(axis=0)]
-        near_target = (
-            np.linalg.norm(reported[:, None, :] - targets[None, :, :], axis=2) <= distance_px
-        ).any(axis=1)
-        reported = reported[~near_target]
-    else:
-        bystanders = heads
+        bystanders = heads[~(to_targets <= match_ratio * heads[None, :, 2]).any(axis=0)]
+        if target_distances is None:
+            target_distances = np.linalg.norm(targets[:, None, :] - reported[None, :, :], axis=2)
+        reported = reported[~(target_distances <= distance_px).any(axis=0)]
     if len(reported) == 0 or len(bystanders) == 0:
         return 0
     to_bystanders = np.linalg.norm(reported[:, None, :] - bystanders[None, :, :2], axis=2)
-    return int((to_bystanders <= ratio * bystanders[None, :, 2]).any(axis=1).sum())
+    return int((to_bystanders <= match_ratio * bystanders[None, :, 2]).any(axis=1).sum())
 
 
 def capture_counts(
-    hypotheses: Mapping[int, Mapping[int, Sequence[float]]],
-    targets: Mapping[int, Mapping[int, Sequence[float]]],
+    sequence: Sequence[FrameObservations],
     heads: Mapping[int, FloatArray],
     distance_px: float,
-    ratio: float = MATCH_RATIO,
+    match_ratio: float = MATCH_RATIO,
 ) -> CaptureCounts:
     """Counts over a video.
 
     Args:
-        hypotheses: frame -> ``{track id: (x, y, ...)}`` as the run reported them.
-        targets: frame -> ``{target id: (x, y)}``, the evaluated ground truth.
+        sequence: the evaluated frames (points), whose target-to-hypothesis distances the CLEAR
+            MOT pass has already computed.
         heads: frame -> ``(M, 3)`` heads.csv rows ``(x, y, head_size)``.
         distance_px: the evaluation's match threshold.
-        ratio: the head-matching ratio of the detection evaluation.
+        match_ratio: the head-matching ratio of the detection evaluation.
     """
-    counts = CaptureCounts()
-    for frame, positions in hypotheses.items():
-        reported = _points(positions)
-        frame_heads = heads.get(frame)
-        captured = 0
+    reported = captured = 0
+    for observation in sequence:
+        reported += len(observation.hyp_ids)
+        frame_heads = heads.get(observation.frame)
         if frame_heads is not None:
-            captured = frame_captured(
-                reported, _points(targets.get(frame, {})), frame_heads, distance_px, ratio
+            captured += frame_captured(
+                observation.hyp_positions[:, :2],
+                observation.gt_positions[:, :2],
+                frame_heads,
+                distance_px,
+                match_ratio,
+                observation.distances("point"),
             )
-        counts = counts + CaptureCounts(reported=len(reported), captured=captured)
-    return counts
+    return CaptureCounts(reported=reported, captured=captured)

@@ -344,11 +344,7 @@ def evaluate_video(
         detection=detection,
         sensitivity={distance: clear_at(distance) for distance in settings.sensitivity_px},
         capture=capture_counts(
-            run.tracks,
-            targets,
-            video.ground_truth.heads,
-            settings.distance_px,
-            settings.detection_match_ratio,
+            sequence, video.ground_truth.heads, settings.distance_px, settings.detection_match_ratio
         )
         if video.ground_truth.heads
         else None,

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from trackfw_plugins.evaluation.capture import capture_counts, frame_captured
+from trackfw_plugins.evaluation.clear_mot import build_sequence
 from trackfw_plugins.evaluation.report import evaluate_dataset
 
 HEADS = np.array([[100.0, 100.0, 60.0], [400.0, 100.0, 60.0], [700.0, 100.0, 60.0]])
@@ -38,7 +39,8 @@ def test_without_targets_on_the_frame_every_head_is_a_bystander() -> None:
 def test_counts_pool_over_frames_and_skip_frames_without_heads() -> None:
     hypotheses = {0: {1: (400.0, 100.0)}, 1: {1: (100.0, 100.0)}, 2: {1: (400.0, 100.0)}}
     targets = {0: {1: (100.0, 100.0)}, 1: {1: (100.0, 100.0)}, 2: {1: (100.0, 100.0)}}
-    counts = capture_counts(hypotheses, targets, {0: HEADS, 1: HEADS}, distance_px=40.0)
+    sequence = build_sequence(targets, hypotheses)
+    counts = capture_counts(sequence, {0: HEADS, 1: HEADS}, distance_px=40.0)
     assert (counts.reported, counts.captured) == (3, 1)
 
 
