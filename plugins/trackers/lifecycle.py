@@ -186,8 +186,11 @@ class Lifecycle:
         self.offsets[np.ix_(seen, rows)] = -self.offsets[np.ix_(rows, seen)].transpose(1, 0, 2)
         self.known[np.ix_(rows, seen)] = True
         self.known[np.ix_(seen, rows)] = True
-        self.size_line = size_line(self.anchor[seen, 1], self.size[seen])
-        self.relative_size[rows[known]] = sizes[known] / self.line_size(positions[known, 1])
+        if self.settings.reentry_margin_px_at_1080 is not None:
+            # Only a return through the border reads the size line: no fit on every frame
+            # while that rule is off.
+            self.size_line = size_line(self.anchor[seen, 1], self.size[seen])
+            self.relative_size[rows[known]] = sizes[known] / self.line_size(positions[known, 1])
 
     def line_size(self, ys: FloatArray) -> FloatArray:
         """Head side the group's line gives at image rows ``ys`` (any shape; NaN when unknown)."""
@@ -320,6 +323,8 @@ class Lifecycle:
         near = np.linalg.norm(expected[:, None, :] - points[None, :, :], axis=2)
         near = near / self.gates(t, rows)[:, None]
         near[self.size_mismatch(rows, sizes)] = np.inf
+        if self.settings.reentry_margin_px_at_1080 is None:
+            return near, np.zeros(near.shape, dtype=bool)
         entry = self.reentry_cost(t, expected, rows, points)
         # Near its expected place a head is compared with its box at exit; through the border
         # with the size expected there. The line's looser check near the expected place let
@@ -360,12 +365,11 @@ class Lifecycle:
             )
             * self.scale
         )
-        margin = settings.reentry_margin_px_at_1080 * self.scale
+        near = depth.min(axis=1) <= settings.reentry_margin_px_at_1080 * self.scale
         for m in np.flatnonzero(sides >= 0):
             side = int(sides[m])
             door = np.clip(expected[m], 0.0, size)
             door[side // 2] = 0.0 if side % 2 == 0 else size[side // 2]
-            near = depth.min(axis=1) <= margin
             cost[m, near] = np.linalg.norm(points[near] - door, axis=1) / gate[m]
         return cost
 
@@ -376,8 +380,8 @@ class Lifecycle:
         self.set(rows[inside], LOST, t)
         # A target lost inside the image whose place the camera has turned away from will come
         # back through the edge its place crossed.
-        entering = rows[~inside][self.exit_side[rows[~inside]] < 0]
-        self.exit_side[entering] = self.edge(expected[~inside][self.exit_side[rows[~inside]] < 0])
+        entering = ~inside & (self.exit_side[rows] < 0)
+        self.exit_side[rows[entering]] = self.edge(expected[entering])
 
     def edge(self, positions: FloatArray) -> IntArray:
         """``(M,)`` image edge each ``(M, 2)`` position outside the image lies beyond (0 left,

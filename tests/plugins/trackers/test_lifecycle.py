@@ -226,6 +226,25 @@ def _walk_out_right(tracker: Any, group: np.ndarray, sizes: list[float]) -> int:
     return t
 
 
+def _left_for_4_s(
+    tracker: Any,
+    group: np.ndarray,
+    sizes: list[float] | None = None,
+    extra: np.ndarray | None = None,
+) -> int:
+    """Start on ``group``, walk target 1 out through the right edge, then show the others (and
+    ``extra`` 30 px heads) for 100 frames (4 s). Returns the frame."""
+    sizes = sizes or [30.0] * len(group)
+    tracker.initialise(0, np.arange(1, len(group) + 1), group)
+    t = _walk_out_right(tracker, group, sizes)
+    shown = group[1:] if extra is None else np.vstack([group[1:], extra])
+    shown_sizes = sizes[1:] + [30.0] * (len(shown) - len(group) + 1)
+    for _ in range(100):
+        t += 1
+        tracker.step(t, _seen(shown, shown_sizes))
+    return t
+
+
 class _AgreeingLooks:
     """An appearance memory whose descriptors always agree (the border rule needs one)."""
 
@@ -268,11 +287,7 @@ def test_returner_reacquired_through_its_exit_edge_far_from_the_exit_point() -> 
     # far beyond the 80 px gate around where it left, within the re-entry gate along that edge.
     tracker = _edge_tracker()
     group = np.array([[1200.0, 300.0], [600.0, 300.0], [700.0, 320.0]])
-    tracker.initialise(0, np.array([1, 2, 3]), group)
-    t = _walk_out_right(tracker, group, [30.0, 30.0, 30.0])
-    for _ in range(100):  # 4 s away
-        t += 1
-        tracker.step(t, _seen(group[1:]))
+    t = _left_for_4_s(tracker, group)
     assert tracker.statuses()[0] == "out-of-view"
     t += 1
     tracker.step(t, _seen(np.vstack([group[1:], [[1275.0, 500.0]]])))
@@ -285,18 +300,10 @@ def test_reentry_needs_the_border_near_the_door() -> None:
     # through the left edge (1270 px from the door), are not target 1: it stays out of view.
     tracker = _edge_tracker()
     group = np.array([[1200.0, 300.0], [600.0, 300.0], [700.0, 320.0]])
-    tracker.initialise(0, np.array([1, 2, 3]), group)
-    t = _walk_out_right(tracker, group, [30.0, 30.0, 30.0])
-    for _ in range(100):
-        t += 1
-        tracker.step(t, _seen(np.vstack([group[1:], [[1180.0, 400.0], [3.0, 300.0]]])))
+    _left_for_4_s(tracker, group, extra=np.array([[1180.0, 400.0], [3.0, 300.0]]))
     assert tracker.statuses() == ["out-of-view", "tracked", "tracked"]
     with_margin = _edge_tracker(reentry_margin_px_at_1080=200.0)
-    with_margin.initialise(0, np.array([1, 2, 3]), group)
-    t = _walk_out_right(with_margin, group, [30.0, 30.0, 30.0])
-    for _ in range(100):
-        t += 1
-        with_margin.step(t, _seen(np.vstack([group[1:], [[1180.0, 400.0]]])))
+    _left_for_4_s(with_margin, group, extra=np.array([[1180.0, 400.0]]))
     assert with_margin.statuses()[0] == "tracked"  # 100 px inside is within a 133 px margin
 
 
@@ -309,11 +316,7 @@ def test_returner_size_compared_with_the_size_expected_at_its_place() -> None:
     returns = {}
     for side in (40.0, 20.0):
         tracker = _edge_tracker(reentry_max_px_at_1080=1200.0)
-        tracker.initialise(0, np.array([1, 2, 3]), group)
-        t = _walk_out_right(tracker, group, sizes)
-        for _ in range(100):
-            t += 1
-            tracker.step(t, _seen(group[1:], sizes[1:]))
+        t = _left_for_4_s(tracker, group, sizes)
         t += 1
         tracker.step(t, _seen(np.vstack([group[1:], [[1275.0, 600.0]]]), [*sizes[1:], side]))
         returns[side] = tracker.statuses()[0]
@@ -333,11 +336,7 @@ def test_returner_reacquired_round_the_corner() -> None:
     # Out through the right edge at y = 650, back 4 s later through the bottom edge 150 px left.
     tracker = _edge_tracker()
     group = np.array([[1200.0, 650.0], [600.0, 300.0], [700.0, 320.0]])
-    tracker.initialise(0, np.array([1, 2, 3]), group)
-    t = _walk_out_right(tracker, group, [30.0, 30.0, 30.0])
-    for _ in range(100):
-        t += 1
-        tracker.step(t, _seen(group[1:]))
+    t = _left_for_4_s(tracker, group)
     t += 1
     tracker.step(t, _seen(np.vstack([group[1:], [[1130.0, 715.0]]])))
     assert tracker.statuses() == ["tracked"] * 3
@@ -348,11 +347,7 @@ def test_no_reentry_through_the_border_without_a_look() -> None:
     # entering through the edge a target left by, so position alone never brings it back there.
     tracker = _edge_tracker(looks=False)
     group = np.array([[1200.0, 300.0], [600.0, 300.0], [700.0, 320.0]])
-    tracker.initialise(0, np.array([1, 2, 3]), group)
-    t = _walk_out_right(tracker, group, [30.0, 30.0, 30.0])
-    for _ in range(100):
-        t += 1
-        tracker.step(t, _seen(group[1:]))
+    t = _left_for_4_s(tracker, group)
     t += 1
     tracker.step(t, _seen(np.vstack([group[1:], [[1275.0, 500.0]]])))
     assert tracker.statuses()[0] == "out-of-view"
