@@ -171,6 +171,38 @@ def _fit(
     return np.vstack([affine, [0.0, 0.0, 1.0]]), np.asarray(flags)
 
 
+@dataclass(frozen=True)
+class SceneFeatures:
+    """Features of one frame's static scene, ready to register against another frame's.
+
+    Attributes:
+        points: ``(P, 2)`` keypoint positions in the downscaled frame.
+        descriptors: their descriptors (None when the detector found none).
+        scale: the downscale factor of the frame (``max_side`` over its longer side, at most 1).
+        shape: ``(H, W)`` of the downscaled frame.
+    """
+
+    points: FloatArray
+    descriptors: np.ndarray | None
+    scale: float
+    shape: tuple[int, int]
+
+
+def scene_features(
+    image: np.ndarray, boxes: FloatArray | None, settings: RegistrationSettings
+) -> SceneFeatures:
+    """Detect the features of ``image`` outside the bodies of the ``(N, 4)`` head ``boxes``.
+
+    A frame registered against several others (each frame of a segment against the next, for
+    camera-motion compensation) needs its features found only once.
+    """
+    scale = min(1.0, settings.max_side / max(image.shape[:2]))
+    grey = _grey(image, scale)
+    mask = people_mask(grey.shape[:2], boxes if settings.mask_people else None, scale)
+    points, descriptors = _features(grey, mask, settings)
+    return SceneFeatures(points, descriptors, scale, (grey.shape[0], grey.shape[1]))
+
+
 def register_scene(
     image_a: np.ndarray,
     image_b: np.ndarray,
@@ -192,12 +224,20 @@ def register_scene(
         matches or inliers support it.
     """
     settings = settings if settings is not None else RegistrationSettings()
-    scale = min(1.0, settings.max_side / max(image_a.shape[:2]))
-    grey_a, grey_b = _grey(image_a, scale), _grey(image_b, scale)
-    mask_a = people_mask(grey_a.shape[:2], boxes_a if settings.mask_people else None, scale)
-    mask_b = people_mask(grey_b.shape[:2], boxes_b if settings.mask_people else None, scale)
-    points_a, descriptors_a = _features(grey_a, mask_a, settings)
-    points_b, descriptors_b = _features(grey_b, mask_b, settings)
+    return register_features(
+        scene_features(image_a, boxes_a, settings),
+        scene_features(image_b, boxes_b, settings),
+        settings,
+    )
+
+
+def register_features(
+    features_a: SceneFeatures, features_b: SceneFeatures, settings: RegistrationSettings
+) -> SceneRegistration:
+    """:func:`register_scene` on features already found (frames of the same size)."""
+    points_a, descriptors_a = features_a.points, features_a.descriptors
+    points_b, descriptors_b = features_b.points, features_b.descriptors
+    scale = features_a.scale
     if descriptors_a is None or descriptors_b is None or len(points_a) < 2 or len(points_b) < 2:
         return _failed(0, 0, "too few features")
     norm = cv2.NORM_L2 if settings.features == "sift" else cv2.NORM_HAMMING
@@ -219,7 +259,7 @@ def register_scene(
     residual = float(np.median(errors)) / scale if count else float("nan")
     if count < settings.min_inliers or count < settings.min_inlier_ratio * len(good):
         return SceneRegistration(np.eye(3), False, len(good), count, residual, "too few inliers")
-    if not plausible(matrix, grey_a.shape[:2], settings.max_area_change):
+    if not plausible(matrix, features_a.shape, settings.max_area_change):
         return SceneRegistration(np.eye(3), False, len(good), count, residual, "implausible map")
     return SceneRegistration(full / full[2, 2], True, len(good), count, residual)
 
@@ -242,9 +282,12 @@ def plausible(matrix: FloatArray, shape: tuple[int, int], max_area_change: float
 
 __all__ = [
     "RegistrationSettings",
+    "SceneFeatures",
     "SceneRegistration",
     "people_mask",
     "plausible",
+    "register_features",
     "register_scene",
+    "scene_features",
     "transform_points",
 ]

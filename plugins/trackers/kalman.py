@@ -21,7 +21,12 @@ from trackfw.records import NO_MATCH, OUT_OF_VIEW, TENTATIVE, Detections, Target
 from trackfw.stages import StageParams, Tracker
 from trackfw_plugins.maths.assignment import distance_matrix, greedy_nearest, hungarian
 from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R, KalmanBank
-from trackfw_plugins.maths.scene_registration import RegistrationSettings, register_scene
+from trackfw_plugins.maths.scene_registration import (
+    RegistrationSettings,
+    SceneFeatures,
+    register_features,
+    scene_features,
+)
 from trackfw_plugins.maths.tps_rpm import match_points
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 from trackfw_plugins.trackers.appearance_memory import AppearanceMemory, AppearanceSettings
@@ -96,14 +101,14 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         return self.params.appearance.descriptor != "none" or self.params.cmc
 
     def see(self, image: UInt8Array | None) -> None:
-        self.previous_image, self.image = getattr(self, "image", None), image
+        self.image = image
 
     def start(self, video: VideoContext) -> None:
         params = self.params
         self.video = video
         self.image = None
-        self.previous_image = None
-        self.previous_boxes: FloatArray | None = None
+        # The previous frame's scene features (cmc): each frame's are found once.
+        self.previous_features: SceneFeatures | None = None
         self.gate = (
             None
             if params.gate_px_at_1080 is None
@@ -121,6 +126,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.memory = AppearanceMemory(
             params.appearance, len(positions), self.video.height, self.life.fps
         )
+        self._remember_scene(None)
 
     def associate(
         self, predicted: FloatArray, detections: Detections, rows: IntArray | None = None
@@ -168,14 +174,23 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
 
     def _compensate(self, detections: Detections) -> None:
         """Warp the filters by the camera motion from the previous frame (when it registers)."""
-        boxes, self.previous_boxes = self.previous_boxes, detections.boxes
-        if self.image is None or self.previous_image is None or len(self.target_ids) == 0:
+        previous = self.previous_features
+        self._remember_scene(detections.boxes)
+        if previous is None or self.previous_features is None or len(self.target_ids) == 0:
             return
-        motion = register_scene(
-            self.previous_image, self.image, boxes, detections.boxes, self.params.cmc_registration
-        )
+        motion = register_features(previous, self.previous_features, self.params.cmc_registration)
         if motion.ok:
             self.bank.warp(motion.matrix)
+
+    def _remember_scene(self, boxes: FloatArray | None) -> None:
+        """Keep this frame's scene features (outside the head ``boxes``) for the next frame."""
+        if not self.params.cmc:
+            return
+        self.previous_features = (
+            None
+            if self.image is None
+            else scene_features(self.image, boxes, self.params.cmc_registration)
+        )
 
     def _reacquire(
         self, t: int, detections: Detections, inactive: IntArray, anchors: IntArray, taken: IntArray
@@ -233,7 +248,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         matched = np.asarray(matched_detection, dtype=np.int64).copy()
-        self.previous_boxes = None if detections is None else detections.boxes
+        self._remember_scene(None if detections is None else detections.boxes)
         active = self.life.active()
         if self.params.reinit_at_b:
             # The old velocity belongs to the pre-interval camera pose
