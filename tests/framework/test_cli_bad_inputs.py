@@ -26,6 +26,16 @@ def run_cli(capsys: pytest.CaptureFixture[str], *arguments: object) -> tuple[int
     return code, capsys.readouterr().err
 
 
+def assert_run_refused(
+    capture: pytest.CaptureFixture[str], pipeline: Path, source: Path, output: Path, *fragments: str
+) -> None:
+    """``trackfw run`` of ``source`` into ``output`` fails in one error line holding
+    ``fragments`` and writes nothing."""
+    code, stderr = run_cli(capture, "run", pipeline, "-i", source, "-o", output, "-q")
+    assert_one_error_line(code, stderr, *fragments)
+    assert not output.exists()
+
+
 def files_under(folder: Path) -> list[Path]:
     return sorted(path for path in folder.rglob("*") if path.is_file()) if folder.exists() else []
 
@@ -233,12 +243,8 @@ def test_a_file_that_is_no_video_is_reported_once_in_trackfw_words(
 ) -> None:
     fake = tmp_path / "clip.mp4"
     fake.write_bytes(content)
-    output = tmp_path / "out"
-    code = main(["run", str(pipeline_file()), "-i", str(fake), "-o", str(output), "-q"])
     # capfd sees file descriptor 2, where FFmpeg writes its own "moov atom not found".
-    stderr = capfd.readouterr().err
-    assert_one_error_line(code, stderr, str(fake), *fragments)
-    assert not output.exists()
+    assert_run_refused(capfd, pipeline_file(), fake, tmp_path / "out", str(fake), *fragments)
 
 
 def test_a_fake_video_inside_a_video_folder_with_meta_is_reported_too(
@@ -251,10 +257,8 @@ def test_a_fake_video_inside_a_video_folder_with_meta_is_reported_too(
     # decoder silently reported every frame as unread.
     video = points_video()
     (video / "video.mp4").write_text("not a video\n", encoding="utf-8")
-    output = tmp_path / "out"
-    code = main(["run", str(pipeline_file()), "-i", str(video), "-o", str(output), "-q"])
-    assert_one_error_line(code, capfd.readouterr().err, str(video / "video.mp4"), "not a video")
-    assert not output.exists()
+    fake = video / "video.mp4"
+    assert_run_refused(capfd, pipeline_file(), video, tmp_path / "out", str(fake), "not a video")
 
 
 def _write_frames(folder: Path, sizes: list[tuple[int, int]], suffix: str = ".jpg") -> list[Path]:
@@ -280,12 +284,8 @@ def test_frames_of_mixed_sizes_name_the_first_odd_one_and_the_expected_size(
     paths = _write_frames(
         tmp_path / "clip" / "img1", [(64, 48), (64, 48), (32, 24), (48, 64)], suffix
     )
-    output = tmp_path / "out"
-    code, stderr = run_cli(
-        capsys, "run", pipeline_file(), "-i", tmp_path / "clip", "-o", output, "-q"
-    )
-    assert_one_error_line(code, stderr, str(paths[2]), "32x24", "expected 64x48", paths[0].name)
-    assert not output.exists()
+    fragments = (str(paths[2]), "32x24", "expected 64x48", paths[0].name)
+    assert_run_refused(capsys, pipeline_file(), tmp_path / "clip", tmp_path / "out", *fragments)
 
 
 def test_frames_of_mixed_sizes_are_refused_when_meta_gives_the_size_too(
@@ -296,10 +296,8 @@ def test_frames_of_mixed_sizes_are_refused_when_meta_gives_the_size_too(
 ) -> None:
     video = points_video()  # meta.json with width, height and n_frames
     paths = _write_frames(video / "img1", [(64, 48), (64, 40)], ".png")
-    output = tmp_path / "out"
-    code, stderr = run_cli(capsys, "run", pipeline_file(), "-i", video, "-o", output, "-q")
-    assert_one_error_line(code, stderr, str(paths[1]), "64x40", "expected 64x48")
-    assert not output.exists()
+    fragments = (str(paths[1]), "64x40", "expected 64x48")
+    assert_run_refused(capsys, pipeline_file(), video, tmp_path / "out", *fragments)
 
 
 # ------------------------------------------------------------ run, validate, bench: the sweep
