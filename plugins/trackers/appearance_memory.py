@@ -54,6 +54,12 @@ class AppearanceSettings(FiniteModel):
         description="a target coming back through the image border away from its expected place"
         " needs a descriptor and a candidate at most this far from it",
     )
+    gap_max_distance: float | None = Field(
+        None,
+        gt=0.0,
+        description="at b, a gap matcher's match farther than this from the target's descriptor is"
+        " refused and the target is lost (re-found later by re-acquisition); None keeps every match",
+    )
     refresh_s: float = Field(
         1.0, gt=0.0, description="seconds between two descriptors of a tracked target"
     )
@@ -113,6 +119,27 @@ class AppearanceMemory:
             self.descriptors[int(target)] = descriptor
         self.described_at[targets[due]] = t
 
+    def distances(
+        self, image: UInt8Array | None, targets: IntArray, detections: Detections, columns: IntArray
+    ) -> FloatArray:
+        """``(M, N)`` distance of target ``targets[m]``'s descriptor to detection ``columns[n]``.
+
+        NaN where nothing can be said: no descriptor configured, no image, or a target never
+        described. Only the ``columns`` detections are described.
+        """
+        distance = np.full((len(targets), len(columns)), np.nan)
+        known = np.array([self.descriptors[int(k)] is not None for k in targets], dtype=bool)
+        if not self.active or image is None or not known.any() or len(columns) == 0:
+            return distance
+        gallery = self.describe(image, detections, columns)
+        query = np.stack([self.descriptors[int(k)] for k in targets[known]])  # type: ignore[misc]
+        distance[known] = (
+            cosine_distance_matrix(query, gallery)
+            if self.embedder is not None
+            else appearance_distance_matrix(query, gallery)
+        )
+        return distance
+
     def veto(
         self,
         image: UInt8Array | None,
@@ -134,14 +161,8 @@ class AppearanceMemory:
         wanted = candidates[known].any(axis=0) if known.any() else np.zeros(0, dtype=bool)
         if not self.active or image is None or not wanted.any():
             return veto
-        gallery = self.describe(image, detections, columns[wanted])
-        query = np.stack([self.descriptors[int(k)] for k in targets[known]])  # type: ignore[misc]
-        distance = (
-            cosine_distance_matrix(query, gallery)
-            if self.embedder is not None
-            else appearance_distance_matrix(query, gallery)
-        )
         rows, wanted_columns = np.flatnonzero(known), np.flatnonzero(wanted)
+        distance = self.distances(image, targets[known], detections, columns[wanted])
         limit = np.full(distance.shape, self.settings.max_distance)
         if entering is not None:
             limit[entering[np.ix_(rows, wanted_columns)]] = self.settings.reentry_max_distance
@@ -153,6 +174,15 @@ class AppearanceMemory:
             cut = self._cut(image, detections.points[columns])
             veto[:, cut] = False if entering is None else entering[:, cut]
         return veto
+
+    def looks(
+        self, image: UInt8Array | None, targets: IntArray, detections: Detections, columns: IntArray
+    ) -> FloatArray:
+        """:meth:`distances`, with NaN also for a ``patch`` cut by the image border (says little)."""
+        distance = self.distances(image, targets, detections, columns)
+        if self.embedder is None and image is not None and len(columns):
+            distance[:, self._cut(image, detections.points[columns])] = np.nan
+        return distance
 
     @staticmethod
     def _cut(image: UInt8Array, points: FloatArray) -> BoolArray:

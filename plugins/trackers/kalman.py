@@ -17,7 +17,15 @@ import numpy as np
 from pydantic import Field
 
 from trackfw.arrays import FloatArray, IntArray, UInt8Array
-from trackfw.records import NO_MATCH, OUT_OF_VIEW, TENTATIVE, Detections, TargetState, VideoContext
+from trackfw.records import (
+    LOST,
+    NO_MATCH,
+    OUT_OF_VIEW,
+    TENTATIVE,
+    Detections,
+    TargetState,
+    VideoContext,
+)
 from trackfw.stages import StageParams, Tracker
 from trackfw_plugins.maths.assignment import distance_matrix, greedy_nearest, hungarian
 from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R, KalmanBank
@@ -246,10 +254,18 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         of the matches); a match to a head of another size than that (``lifecycle.size_ratio_max``)
         counts as no match.
         """
-        positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+        positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2).copy()
         matched = np.asarray(matched_detection, dtype=np.int64).copy()
         self._remember_scene(None if detections is None else detections.boxes)
         active = self.life.active()
+        detection_rows = self._detection_rows(matched, detections)
+        sides = self._matched_sides(detection_rows, detections)
+        self.life.rescale_sizes(active, sides[active])
+        mismatch = self.life.size_mismatch(np.arange(len(matched)), sides)
+        matched[np.diagonal(mismatch)] = NO_MATCH
+        detection_rows[matched == NO_MATCH] = NO_MATCH
+        unlike = self._check_looks_at_b(active, matched, detection_rows, positions, detections)
+        sides = self._matched_sides(detection_rows, detections)
         if self.params.reinit_at_b:
             # The old velocity belongs to the pre-interval camera pose
             # (docs/algorithms/segment-tracker.md#re-initialisation-at-b).
@@ -257,32 +273,78 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         else:
             self.bank.predict()
             self.bank.means[active, :2] = positions[active]
-        sides = self._matched_sides(matched, detections)
-        self.life.rescale_sizes(active, sides[active])
-        mismatch = self.life.size_mismatch(np.arange(len(matched)), sides)
-        matched[np.diagonal(mismatch)] = NO_MATCH
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
         self.matched[active] = matched[active]
-        placed = active[matched[active] == NO_MATCH]
+        placed = np.setdiff1d(active[matched[active] == NO_MATCH], unlike)
         outside = ~self.life.inside(positions[placed])
         self.life.set(placed[outside], OUT_OF_VIEW, t)
         self.life.set(placed[~outside], TENTATIVE, t)
         self.life.since[placed[~outside]] = t  # the confirmation clock starts at b
+        # A match that looks like someone else is no evidence of where the target is: it is
+        # lost, and only re-acquisition (with the appearance check) brings it back.
+        self.life.set(unlike, LOST, t)
         supported = active[matched[active] != NO_MATCH]
         self.life.supported(t, supported, positions[supported], sides[supported])
 
+    def _check_looks_at_b(
+        self,
+        active: IntArray,
+        matched: IntArray,
+        detection_rows: IntArray,
+        positions: FloatArray,
+        detections: Detections | None,
+    ) -> IntArray:
+        """Refuse the matches at b that look like someone else; re-match those targets by look.
+
+        A match farther than ``appearance.gap_max_distance`` from the target's descriptor is
+        refused. The refused targets then take, by Hungarian on appearance distance (same
+        limit, sizes checked), the detections no kept match holds: when the window match
+        swapped two targets, each finds its own head again. ``matched``, ``detection_rows``
+        and ``positions`` are updated in place.
+
+        Returns:
+            The targets left without a match (to be lost).
+        """
+        limit = self.params.appearance.gap_max_distance
+        if limit is None or detections is None or len(detections) == 0:
+            return np.zeros(0, dtype=np.int64)
+        checked = active[detection_rows[active] >= 0]
+        look = self.memory.looks(self.image, checked, detections, detection_rows[checked])
+        unlike = checked[np.diagonal(look) > limit]  # NaN (nothing known) refuses nothing
+        if len(unlike) == 0:
+            return unlike
+        detection_rows[unlike] = NO_MATCH
+        matched[unlike] = NO_MATCH
+        free = np.setdiff1d(np.arange(len(detections)), detection_rows[detection_rows >= 0])
+        cost = self.memory.looks(self.image, unlike, detections, free)
+        cost[np.isnan(cost) | self.life.size_mismatch(unlike, box_sides(detections)[free])] = np.inf
+        columns = hungarian(cost, limit)
+        hit = columns >= 0
+        found, rows = unlike[hit], free[columns[hit]]
+        detection_rows[found] = rows
+        matched[found] = detections.index[rows]
+        positions[found] = detections.points[rows]
+        return unlike[~hit]
+
     @staticmethod
-    def _matched_sides(matched: IntArray, detections: Detections | None) -> FloatArray:
-        """``(K,)`` box side of each target's matched detection at b (NaN when none/unknown)."""
-        sides = np.full(len(matched), np.nan)
+    def _detection_rows(matched: IntArray, detections: Detections | None) -> IntArray:
+        """``(K,)`` row of ``detections`` of each target's matched detection index (-1: none)."""
+        rows = np.full(len(matched), NO_MATCH, dtype=np.int64)
+        if detections is None or len(detections) == 0:
+            return rows
+        lookup = {int(index): row for row, index in enumerate(detections.index)}
+        for k, index in enumerate(matched):
+            rows[k] = lookup.get(int(index), NO_MATCH)
+        return rows
+
+    @staticmethod
+    def _matched_sides(detection_rows: IntArray, detections: Detections | None) -> FloatArray:
+        """``(K,)`` box side of each target's matched detection row at b (NaN when none)."""
+        sides = np.full(len(detection_rows), np.nan)
         if detections is None or len(detections) == 0:
             return sides
-        lookup = {int(index): row for row, index in enumerate(detections.index)}
-        all_sides = box_sides(detections)
-        for k, index in enumerate(matched):
-            row = lookup.get(int(index))
-            if row is not None:
-                sides[k] = all_sides[row]
+        found = detection_rows >= 0
+        sides[found] = box_sides(detections)[detection_rows[found]]
         return sides
 
     def positions(self) -> FloatArray:

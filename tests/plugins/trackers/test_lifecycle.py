@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import pytest
 
 from trackfw.records import Detections, VideoContext
 from trackfw.registry import load_registry
@@ -210,6 +211,53 @@ def test_a_match_at_b_out_of_line_with_the_groups_scale_is_tentative() -> None:
     at_b = GROUP * 1.6
     tracker.reinitialise(40, at_b, np.array([0, 1, 2]), _seen(at_b, [48.0, 48.0, 100.0]))
     assert tracker.statuses() == ["tracked", "tracked", "tentative"]
+
+
+RED, GREEN, BLUE = (0, 0, 255), (0, 255, 0), (255, 0, 0)
+
+
+def _looked_at(gap_max_distance: float | None) -> Any:
+    """Three targets (red, green, blue) seen once with the patch descriptor on."""
+    appearance = {"descriptor": "patch", "max_distance": 0.3, "gap_max_distance": gap_max_distance}
+    tracker = load_registry().build_stage(
+        "tracker", {"type": "kalman", "params": {"appearance": appearance}}
+    )
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([1, 2, 3]), GROUP)
+    colours = (RED, GREEN, BLUE)
+    tracker.see(_painted([(x, y, c) for (x, y), c in zip(GROUP, colours, strict=True)]))
+    tracker.step(1, _seen(GROUP))
+    return tracker
+
+
+@pytest.mark.parametrize("limit", [None, 0.3])
+def test_a_swap_at_b_is_undone_by_look(limit: float | None) -> None:
+    # The group reappears 200 px lower; the window match swapped targets 1 and 2. With the
+    # look check each refuses the other's head and takes its own again by appearance.
+    tracker = _looked_at(limit)
+    at_b = GROUP + np.array([0.0, 200.0])
+    tracker.see(_painted([(x, y, c) for (x, y), c in zip(at_b, (RED, GREEN, BLUE), strict=True)]))
+    swapped = np.array([1, 0, 2])
+    tracker.reinitialise(40, at_b[swapped], swapped, _seen(at_b))
+    states = tracker.states()
+    assert [s.status for s in states] == ["tracked"] * 3
+    expected = [1, 0, 2] if limit is None else [0, 1, 2]
+    assert [s.matched_detection for s in states] == expected
+    assert np.allclose(tracker.positions(), at_b[expected])
+
+
+def test_a_match_at_b_that_looks_like_someone_else_is_lost() -> None:
+    # Target 1 (red) walked away during the look-away; the window match put it on a cyan
+    # bystander. It is lost, not reported on the bystander; the others stay tracked.
+    tracker = _looked_at(0.3)
+    at_b = GROUP + np.array([0.0, 200.0])
+    tracker.see(
+        _painted([(at_b[0, 0], at_b[0, 1], (255, 255, 0)), (*at_b[1], GREEN), (*at_b[2], BLUE)])
+    )
+    tracker.reinitialise(40, at_b, np.array([0, 1, 2]), _seen(at_b))
+    assert tracker.statuses() == ["lost", "tracked", "tracked"]
+    tracker.step(41, _seen(at_b))
+    assert tracker.statuses()[0] == "lost"
 
 
 def _walk_out_right(tracker: Any, group: np.ndarray, sizes: list[float]) -> int:
