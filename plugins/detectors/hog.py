@@ -66,6 +66,11 @@ class HogDetector(Detector[HogParams]):
             if scale == 1.0
             else cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_LINEAR)
         )
+        window_width, window_height = self.hog.winSize
+        if resized.shape[0] < window_height or resized.shape[1] < window_width:
+            # OpenCV's detectMultiScale crashes the process (no exception) on an image smaller
+            # than its detection window; nobody of the window's size fits in it anyway.
+            return Detections.empty()
         stride = self.params.win_stride
         boxes, weights = self.hog.detectMultiScale(
             resized,

@@ -24,6 +24,13 @@ def test_blank_frame_gives_nothing() -> None:
     assert len(detections) == 0
 
 
+@pytest.mark.parametrize("work_width", [0, 32])
+def test_frame_smaller_than_the_window_gives_nothing(work_width: int) -> None:
+    # OpenCV's detectMultiScale ends the process on an image smaller than its 64x128 window.
+    image = np.random.default_rng(0).integers(0, 255, (48, 64, 3), dtype=np.uint8)
+    assert len(HogDetector(HogParams(work_width=work_width)).detect_image(image)) == 0
+
+
 def test_finds_pedestrians_on_a_real_frame(shared_data: Path) -> None:
     image = cv2.imread(str(shared_data / "TUD-Stadtmitte" / "img1" / "000001.jpg"))
     assert image is not None
