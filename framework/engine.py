@@ -42,7 +42,7 @@ from trackfw.records import (
 )
 from trackfw.registry import Registry
 from trackfw.segment import Segment
-from trackfw.stage_cache import CACHED_KINDS, StageCache
+from trackfw.stage_cache import CACHED_KINDS, StageCache, cache_key
 from trackfw.stages import STAGE_KINDS, BatchStages, PipelineStages, Stage
 from trackfw.targets import TargetChooser
 
@@ -213,8 +213,12 @@ class Engine:
         for observation in front:
             loop.observe(observation)
         run = loop.finish(time.perf_counter() - started)
-        if cache is not None and replay is None:
-            cache.store(key, run.frames, video.name)
+        if cache is not None:
+            if replay is None:
+                cache.store(key, run.frames, video.name)
+            if cache.share_detector and "classifier" in self.pipeline.stages:
+                detector_key = cache_key(self.pipeline, video, self.registry, ("detector",))
+                cache.store_detector(detector_key, run.frames, video.name)
         return run
 
 

@@ -145,10 +145,19 @@ def _resources(registry: Registry | None, spec: StageConfig) -> list[Path]:
     return spec.cls.resource_files(spec.params)
 
 
-def cache_key(pipeline: Pipeline, video: VideoContext, registry: Registry | None = None) -> str:
-    """The key of ``video`` run through the detector and classifier of ``pipeline``."""
+def cache_key(
+    pipeline: Pipeline,
+    video: VideoContext,
+    registry: Registry | None = None,
+    kinds: Sequence[str] = CACHED_KINDS,
+) -> str:
+    """The key of ``video`` run through the detector and classifier of ``pipeline``.
+
+    ``kinds=("detector",)`` gives the key of the detector alone: the key of a batch pipeline
+    without a classifier that uses the same detector (see :meth:`StageCache.store_detector`).
+    """
     # A batch pipeline may have no classifier: its key covers the detector alone.
-    configs = {kind: pipeline.stages[kind] for kind in CACHED_KINDS if kind in pipeline.stages}
+    configs = {kind: pipeline.stages[kind] for kind in kinds if kind in pipeline.stages}
     stages = {kind: spec.as_data() for kind, spec in configs.items()}
     recipe = {
         "format": CACHE_FORMAT,
@@ -213,7 +222,9 @@ class StageReplay:
         )
 
 
-def _recording_arrays(frames: Sequence[RecordedFrame], key: str) -> dict[str, np.ndarray]:
+def _recording_arrays(
+    frames: Sequence[RecordedFrame], key: str, classifier: bool = True
+) -> dict[str, np.ndarray]:
     count = len(frames)
     status = np.zeros(count, dtype=np.uint8)
     probability = np.full(count, np.nan)
@@ -232,10 +243,11 @@ def _recording_arrays(frames: Sequence[RecordedFrame], key: str) -> dict[str, np
         if record.status != "ok" or record.detections is None:
             continue
         detections = record.detections
-        probability[position] = float(record.probability or 0.0)
-        infoless[position] = bool(record.infoless)
+        # Without the classifier a frame reads as a classifier-less run records it.
+        probability[position] = float(record.probability or 0.0) if classifier else 0.0
+        infoless[position] = bool(record.infoless) and classifier
         ms_detector[position] = record.milliseconds.get("detector", 0.0)
-        ms_classifier[position] = record.milliseconds.get("classifier", 0.0)
+        ms_classifier[position] = record.milliseconds.get("classifier", 0.0) if classifier else 0.0
         counts[position] = len(detections)
         points.append(detections.points)
         scores.append(detections.scores)
@@ -296,8 +308,10 @@ class StageCache:
     (a benchmark job reports them).
     """
 
-    def __init__(self, directory: str | os.PathLike[str]) -> None:
+    def __init__(self, directory: str | os.PathLike[str], share_detector: bool = False) -> None:
         self.directory = Path(directory)
+        #: A run with a classifier also records its detector alone (:meth:`store_detector`).
+        self.share_detector = share_detector
         self.hits = 0
         self.misses = 0
         self.stores = 0
@@ -334,6 +348,24 @@ class StageCache:
         path = self.path(key, video_name)
         with atomic_open(path, "wb") as stream:
             np.savez(stream, **arrays)  # type: ignore[arg-type]
+        self.stores += 1
+        return path
+
+    def store_detector(
+        self, key: str, frames: Sequence[RecordedFrame], video_name: str = ""
+    ) -> Path | None:
+        """Record the detector's outputs alone under its own key, unless already there.
+
+        A run with a classifier writes this beside its own entry, so a batch pipeline without a
+        classifier that uses the same detector (Table 1's batch rows) replays the detections
+        instead of computing them again. ``key`` comes from :func:`cache_key` with
+        ``kinds=("detector",)``.
+        """
+        if self.contains(key, video_name):
+            return None
+        path = self.path(key, video_name)
+        with atomic_open(path, "wb") as stream:
+            np.savez(stream, **_recording_arrays(frames, key, classifier=False))  # type: ignore[arg-type]
         self.stores += 1
         return path
 

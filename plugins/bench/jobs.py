@@ -60,6 +60,8 @@ class Job:
         run_dir: where the run's files go.
         cache_dir: the stage cache folder, or None for no cache.
         timeout_s: time limit in seconds, or None.
+        share_detector: also record the detector's outputs alone in the cache, for a batch
+            pipeline of the same sweep that uses the same detector without a classifier.
     """
 
     pipeline_name: str
@@ -71,6 +73,7 @@ class Job:
     run_dir: str
     cache_dir: str | None = None
     timeout_s: float | None = None
+    share_detector: bool = field(default=False, compare=False)
 
     @property
     def label(self) -> str:
@@ -265,7 +268,7 @@ def _run(job: Job, registry: Registry, progress: Callable[[int], None]) -> str:
             " the worker has other plugin versions."
         )
     video = load_video(Path(job.video_path))
-    cache = StageCache(job.cache_dir) if job.cache_dir else None
+    cache = StageCache(job.cache_dir, job.share_detector) if job.cache_dir else None
     run = Engine(pipeline, registry).run_video(video, progress=progress, cache=cache)
     state = "off" if cache is None else ("hit" if cache.hits else "miss")
     replayed_ms = (

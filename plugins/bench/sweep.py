@@ -18,7 +18,7 @@ from __future__ import annotations
 import re
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -66,6 +66,8 @@ class SweepPlan:
         videos: the dataset's videos.
         jobs: one per (pipeline, video), pipeline by pipeline.
         cache_keys: job label -> stage cache key (empty without a cache).
+        detector_keys: job label -> the key of its detector alone, for the jobs that record it
+            for a batch pipeline of the plan (``Job.share_detector``).
     """
 
     dataset: Path
@@ -75,6 +77,7 @@ class SweepPlan:
     videos: list[VideoContext]
     jobs: list[Job]
     cache_keys: dict[str, str] = field(default_factory=dict)
+    detector_keys: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass
@@ -186,8 +189,8 @@ def plan_sweep(
         cache_dir = Path(cache_dir).resolve() if cache_dir is not None else out_dir / CACHE_FOLDER
     else:
         cache_dir = None
-    jobs, keys = _list_jobs(registry, planned, videos, cache_dir, timeout_s)
-    return SweepPlan(dataset, out_dir, cache_dir, planned, videos, jobs, keys)
+    jobs, keys, detector_keys = _list_jobs(registry, planned, videos, cache_dir, timeout_s)
+    return SweepPlan(dataset, out_dir, cache_dir, planned, videos, jobs, keys, detector_keys)
 
 
 def _load_pipelines(
@@ -230,10 +233,18 @@ def _list_jobs(
     videos: Sequence[VideoContext],
     cache_dir: Path | None,
     timeout_s: float | None,
-) -> tuple[list[Job], dict[str, str]]:
-    """One job per (pipeline, video), and each job's stage cache key when the cache is used."""
+) -> tuple[list[Job], dict[str, str], dict[str, str]]:
+    """One job per (pipeline, video), and each job's stage cache keys when the cache is used.
+
+    Returns:
+        The jobs, each job's key, and the key of the detector alone of the jobs of pipelines
+        with a classifier whose detector a batch pipeline of the plan uses (those jobs record
+        it: ``Job.share_detector``).
+    """
     jobs: list[Job] = []
     keys: dict[str, str] = {}
+    detector_keys: dict[str, str] = {}
+    batch_keys: set[str] = set()
     for entry in planned:
         for video in videos:
             job = Job(
@@ -248,9 +259,17 @@ def _list_jobs(
                 timeout_s=timeout_s,
             )
             jobs.append(job)
-            if cache_dir is not None:
-                keys[job.label] = cache_key(entry.pipeline, video, registry)
-    return jobs, keys
+            if cache_dir is None:
+                continue
+            keys[job.label] = cache_key(entry.pipeline, video, registry)
+            if entry.pipeline.is_batch:
+                batch_keys.add(keys[job.label])
+            elif "classifier" in entry.pipeline.stages:
+                detector_keys[job.label] = cache_key(entry.pipeline, video, registry, ("detector",))
+    # Only where a batch pipeline of the plan reads it is the detector recorded alone.
+    detector_keys = {label: key for label, key in detector_keys.items() if key in batch_keys}
+    jobs = [replace(job, share_detector=job.label in detector_keys) for job in jobs]
+    return jobs, keys, detector_keys
 
 
 def schedule(plan: SweepPlan, pending: Sequence[Job]) -> list[list[Job]]:
@@ -258,23 +277,27 @@ def schedule(plan: SweepPlan, pending: Sequence[Job]) -> list[list[Job]]:
 
     The first wave holds every job whose stage outputs are cached already (or that uses no
     cache) and one job per missing cache entry; the second the jobs that will replay what the
-    first wave records. Without a cache there is one wave.
+    first wave records. A job that records its detector alone for a batch pipeline
+    (``Job.share_detector``) is placed first, so that the batch job replays it.
+    Without a cache there is one wave.
     """
     if plan.cache_dir is None:
         return [list(pending)] if pending else []
     cache = StageCache(plan.cache_dir)
     first: list[Job] = []
     second: list[Job] = []
-    leaders: set[str] = set()
-    for job in pending:
+    coming: set[str] = set()  # entries a first-wave job will write
+    for job in sorted(pending, key=lambda job: job.label not in plan.detector_keys):
         key = plan.cache_keys.get(job.label)
-        if key is None or cache.contains(key, job.video_name):
-            first.append(job)
-        elif key not in leaders:
-            leaders.add(key)
-            first.append(job)
-        else:
-            second.append(job)
+        if key is not None and not cache.contains(key, job.video_name):
+            if key in coming:
+                second.append(job)
+                continue
+            coming.add(key)
+        first.append(job)
+        detector_key = plan.detector_keys.get(job.label)
+        if detector_key is not None and not cache.contains(detector_key, job.video_name):
+            coming.add(detector_key)
     return [wave for wave in (first, second) if wave]
 
 

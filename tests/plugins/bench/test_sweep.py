@@ -210,3 +210,27 @@ def test_a_shared_cache_dir_serves_another_output_folder(small_dataset, tmp_path
     assert [job["cache"] for job in _manifest(tmp_path / "first")["jobs"]] == ["miss"]
     assert [job["cache"] for job in _manifest(tmp_path / "second")["jobs"]] == ["hit"]
     assert len(list(cache.glob("v0-*.npz"))) == 1
+
+
+def test_a_batch_row_replays_the_detections_a_segment_row_recorded(
+    bench_plugin, bench_pipeline, small_dataset, tmp_path: Path
+) -> None:
+    # Table 1 puts batch trackers (no classifier) beside segment pipelines with the same
+    # detector: the detector runs once per video, and the batch row replays what it found.
+    dataset = small_dataset(count=2)
+    segment = bench_pipeline("counting")
+    batch = tmp_path / "pipelines" / "batch.yaml"
+    batch.write_text(
+        "name: batch\nstages:\n  detector: {type: bench-test}\n  batch_tracker: {type: dpnms}\n"
+    )
+    together, alone = tmp_path / "together", tmp_path / "alone"
+    arguments = ["--dataset", str(dataset), "-q", "--jobs", "1"]
+    assert main(["bench", str(batch), str(segment), "--out", str(together), *arguments]) == 0
+    states = {(job["pipeline"], job["cache"]) for job in _manifest(together)["jobs"]}
+    assert states == {("batch", "hit"), ("counting", "miss")}
+    assert main(["bench", str(batch), "--out", str(alone), *arguments]) == 0
+    assert [job["cache"] for job in _manifest(alone)["jobs"]] == ["miss", "miss"]
+    for video in ("v0", "v1"):
+        replayed = next((together / "runs").glob(f"batch-*/{video}/tracks.txt")).read_text()
+        computed = next((alone / "runs").glob(f"batch-*/{video}/tracks.txt")).read_text()
+        assert replayed == computed and replayed
