@@ -216,7 +216,7 @@ class Engine:
         if cache is not None:
             if replay is None:
                 cache.store(key, run.frames, video.name)
-            if cache.share_detector and "classifier" in self.pipeline.stages:
+            if cache.share_detector:  # a segment pipeline always has a classifier
                 detector_key = cache_key(self.pipeline, video, self.registry, ("detector",))
                 cache.store_detector(detector_key, run.frames, video.name)
         return run

@@ -344,12 +344,7 @@ class StageCache:
 
     def store(self, key: str, frames: Sequence[RecordedFrame], video_name: str = "") -> Path:
         """Record the detector and classifier outputs of a finished run (atomically)."""
-        arrays = _recording_arrays(frames, key)
-        path = self.path(key, video_name)
-        with atomic_open(path, "wb") as stream:
-            np.savez(stream, **arrays)  # type: ignore[arg-type]
-        self.stores += 1
-        return path
+        return self._write(key, _recording_arrays(frames, key), video_name)
 
     def store_detector(
         self, key: str, frames: Sequence[RecordedFrame], video_name: str = ""
@@ -363,9 +358,13 @@ class StageCache:
         """
         if self.contains(key, video_name):
             return None
+        return self._write(key, _recording_arrays(frames, key, classifier=False), video_name)
+
+    def _write(self, key: str, arrays: dict[str, np.ndarray], video_name: str) -> Path:
+        """Write one entry's arrays atomically; count the store."""
         path = self.path(key, video_name)
         with atomic_open(path, "wb") as stream:
-            np.savez(stream, **_recording_arrays(frames, key, classifier=False))  # type: ignore[arg-type]
+            np.savez(stream, **arrays)  # type: ignore[arg-type]
         self.stores += 1
         return path
 

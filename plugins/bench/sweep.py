@@ -264,7 +264,7 @@ def _list_jobs(
             keys[job.label] = cache_key(entry.pipeline, video, registry)
             if entry.pipeline.is_batch:
                 batch_keys.add(keys[job.label])
-            elif "classifier" in entry.pipeline.stages:
+            else:  # a segment pipeline: detector + classifier
                 detector_keys[job.label] = cache_key(entry.pipeline, video, registry, ("detector",))
     # Only where a batch pipeline of the plan reads it is the detector recorded alone.
     detector_keys = {label: key for label, key in detector_keys.items() if key in batch_keys}
