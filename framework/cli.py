@@ -105,11 +105,13 @@ def run_command(
 ) -> None:
     """Track the targets through a video or every video of a dataset."""
     from trackfw.formats.run import unread_warning
-    from trackfw.runner import prepare_run, run_prepared
+    from trackfw.runner import prepare_run, replaced_runs, run_prepared
 
     registry = get_registry()
     overrides = [*(overrides or []), *_target_overrides(region, targets)]
     prepared = prepare_run(registry, pipeline, input_path, output, overrides)
+    for message in replaced_runs(prepared):
+        error_console.print(f"warning: {message}", markup=False, highlight=False, soft_wrap=True)
     results = run_prepared(prepared, registry, show_progress=not quiet, console=error_console)
     table = Table(title=f"pipeline {prepared.pipeline.name}")
     # A video's name may fold; numbers never do. "proc. fps" is how fast trackfw processed the

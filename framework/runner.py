@@ -6,6 +6,7 @@ output file or folder is created.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -82,6 +83,27 @@ def prepare_run(
         )
     TargetChooser(pipeline.engine).check(videos)
     return PreparedRun(pipeline, videos, destination)
+
+
+def replaced_runs(prepared: PreparedRun) -> list[str]:
+    """One sentence per video folder of ``prepared`` that holds another pipeline's run.
+
+    Re-running a pipeline into its own folder is common and says nothing; a run of another
+    pipeline there is most likely a mistyped ``-o`` and is about to be replaced.
+    """
+    messages = []
+    for video in prepared.videos:
+        summary = prepared.output / video.name / "summary.json"
+        try:
+            previous = json.loads(summary.read_text(encoding="utf-8")).get("pipeline")
+        except (OSError, ValueError, AttributeError):
+            continue
+        if isinstance(previous, str) and previous != prepared.pipeline.name:
+            messages.append(
+                f"{summary.parent} holds a run of pipeline {previous!r}; this run of"
+                f" {prepared.pipeline.name!r} replaces it."
+            )
+    return messages
 
 
 def run_prepared(
