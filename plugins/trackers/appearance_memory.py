@@ -60,6 +60,18 @@ class AppearanceSettings(FiniteModel):
         description="at b, a gap matcher's match farther than this from the target's descriptor is"
         " refused and the target is lost (re-found later by re-acquisition); None keeps every match",
     )
+    anywhere_max_distance: float | None = Field(
+        None,
+        gt=0.0,
+        description="a lost or out-of-view target is also re-found anywhere in the image by the"
+        " free detection that looks most like it, when at most this far and clearly nearer than"
+        " every other detection (anywhere_margin); None: only near its expected place",
+    )
+    anywhere_margin: float = Field(
+        0.15,
+        ge=0.0,
+        description="how much nearer in look that detection must be than the next one",
+    )
     refresh_s: float = Field(
         1.0, gt=0.0, description="seconds between two descriptors of a tracked target"
     )

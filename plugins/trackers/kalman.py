@@ -57,6 +57,11 @@ def _cmc_registration() -> RegistrationSettings:
     return RegistrationSettings(model="affine", max_features=500)
 
 
+#: Seconds between two searches of the whole frame for a lost target's look (each describes every
+#: detection of the frame; a returner found within 0.2 s misses at most a few frames).
+LOOK_ANYWHERE_PERIOD_S = 0.2
+
+
 class KalmanTrackerParams(StageParams):
     """Parameters of the Kalman tracker; P0, Q and R default to the paper's values."""
 
@@ -224,6 +229,11 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         columns = hungarian(cost, 1.0)
         hit = columns >= 0
         found, chosen = inactive[hit], free[columns[hit]]
+        by_look, looked = self._reacquire_by_look(
+            t, detections, inactive[~hit], np.setdiff1d(free, chosen)
+        )
+        hit[np.isin(inactive, by_look)] = True
+        found, chosen = np.concatenate([found, by_look]), np.concatenate([chosen, looked])
         self._restart(found, detections.points[chosen])
         self.matched[found] = detections.index[chosen]
         # A target not found waits at its expected place, still: its own velocity was measured
@@ -233,6 +243,41 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.bank.means[waiting, 2:] = 0.0
         life.place(t, waiting, expected[~hit])
         return found, chosen
+
+    def _reacquire_by_look(
+        self, t: int, detections: Detections, rows: IntArray, free: IntArray
+    ) -> tuple[IntArray, IntArray]:
+        """Re-find inactive ``rows`` anywhere by look (``appearance.anywhere_max_distance``).
+
+        The group's offsets go stale while a target is lost in a crowd that walks both ways, and
+        its expected place drifts away from where it is; its look does not. A target takes the
+        free detection that looks most like it when that one is within the limit and nearer in
+        look than every other detection of the frame by ``anywhere_margin`` (a bystander
+        rarely stands out from the rest of the crowd that clearly). Checked every
+        :data:`LOOK_ANYWHERE_PERIOD_S`: it describes every detection of the frame.
+
+        Returns:
+            The rows found and the detection (row of ``detections``) of each.
+        """
+        settings = self.params.appearance
+        none = np.zeros(0, dtype=np.int64)
+        period = max(1, round(LOOK_ANYWHERE_PERIOD_S * self.life.fps))
+        if (
+            settings.anywhere_max_distance is None
+            or len(rows) == 0
+            or len(free) == 0
+            or t % period != 0
+        ):
+            return none, none
+        look = self.memory.looks(self.image, rows, detections, np.arange(len(detections)))
+        look = np.where(np.isnan(look), np.inf, look)
+        ordered = np.sort(look, axis=1)
+        second = ordered[:, 1] if look.shape[1] > 1 else np.full(len(rows), np.inf)
+        cost = look[:, free]
+        clear = cost + settings.anywhere_margin <= second[:, None]
+        columns = hungarian(np.where(clear, cost, np.inf), settings.anywhere_max_distance)
+        hit = columns >= 0
+        return rows[hit], free[columns[hit]]
 
     def _restart(self, rows: IntArray, positions: FloatArray) -> None:
         """Restart the filters ``rows`` at ``(M, 2)`` positions with zero velocity and P0."""

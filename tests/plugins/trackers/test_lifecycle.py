@@ -399,3 +399,51 @@ def test_no_reentry_through_the_border_without_a_look() -> None:
     t += 1
     tracker.step(t, _seen(np.vstack([group[1:], [[1275.0, 500.0]]])))
     assert tracker.statuses()[0] == "out-of-view"
+
+
+def _lost_red(anywhere: float | None) -> Any:
+    """Red, green and blue targets seen with the patch descriptor; red then gone for 1 s."""
+    appearance = {"descriptor": "patch", "max_distance": 0.3, "anywhere_max_distance": anywhere}
+    tracker = load_registry().build_stage(
+        "tracker",
+        {
+            "type": "kalman",
+            "params": {"appearance": appearance, "lifecycle": {"lost_after_s": 0.2}},
+        },
+    )
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([1, 2, 3]), GROUP)
+    colours = (RED, GREEN, BLUE)
+    tracker.see(_painted([(x, y, c) for (x, y), c in zip(GROUP, colours, strict=True)]))
+    tracker.step(1, _seen(GROUP))
+    for t in range(2, 27):
+        tracker.see(_painted([(*GROUP[1], GREEN), (*GROUP[2], BLUE)]))
+        tracker.step(t, _seen(GROUP[1:]))
+    assert tracker.statuses() == ["lost", "tracked", "tracked"]
+    return tracker
+
+
+@pytest.mark.parametrize("anywhere", [None, 0.3])
+def test_a_lost_target_is_found_anywhere_by_a_look_that_stands_out(anywhere: float | None) -> None:
+    # Red comes back 500 px from where the group puts it (far outside any gate), beside a
+    # cyan bystander: only a search by look finds it there.
+    tracker = _lost_red(anywhere)
+    red, cyan = np.array([1000.0, 600.0]), np.array([1000.0, 450.0])
+    spots = [(*GROUP[1], GREEN), (*GROUP[2], BLUE), (*red, RED), (*cyan, (255, 255, 0))]
+    tracker.see(_painted(spots))
+    tracker.step(30, _seen(np.vstack([GROUP[1:], red, cyan])))  # 30: a frame the search runs
+    if anywhere is None:
+        assert tracker.statuses()[0] == "lost"
+    else:
+        assert tracker.statuses()[0] == "tracked"
+        assert np.allclose(tracker.positions()[0], red, atol=1.0)
+
+
+def test_no_find_anywhere_between_two_heads_that_look_alike() -> None:
+    # Two red heads far away: neither stands out from the other, so the target stays lost.
+    tracker = _lost_red(0.3)
+    reds = np.array([[1000.0, 600.0], [1100.0, 450.0]])
+    spots = [(*GROUP[1], GREEN), (*GROUP[2], BLUE), *((x, y, RED) for x, y in reds)]
+    tracker.see(_painted(spots))
+    tracker.step(30, _seen(np.vstack([GROUP[1:], reds])))
+    assert tracker.statuses()[0] == "lost"
