@@ -6,7 +6,6 @@ output file or folder is created.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,7 +15,8 @@ from trackfw.atomic import check_output_folder
 from trackfw.dataset import list_videos, load_video
 from trackfw.engine import Engine, VideoRun, check_videos
 from trackfw.errors import UserError
-from trackfw.formats.run import write_run
+from trackfw.formats.run import SUMMARY_FILE, write_run
+from trackfw.formats.text import read_json
 from trackfw.pipeline import Pipeline, load_pipeline
 from trackfw.progress import progress_bar
 from trackfw.records import VideoContext
@@ -93,14 +93,19 @@ def replaced_runs(prepared: PreparedRun) -> list[str]:
     """
     messages = []
     for video in prepared.videos:
-        summary = prepared.output / video.name / "summary.json"
-        try:
-            previous = json.loads(summary.read_text(encoding="utf-8")).get("pipeline")
-        except (OSError, ValueError, AttributeError):
+        summary = prepared.output / video.name / SUMMARY_FILE
+        if not summary.is_file():
             continue
-        if isinstance(previous, str) and previous != prepared.pipeline.name:
+        try:
+            previous = read_json(summary)
+        except UserError:
+            continue  # an unreadable summary names no pipeline to warn about
+        if isinstance(previous, dict) and previous.get("pipeline") not in (
+            None,
+            prepared.pipeline.name,
+        ):
             messages.append(
-                f"{summary.parent} holds a run of pipeline {previous!r}; this run of"
+                f"{summary.parent} holds a run of pipeline {previous['pipeline']!r}; this run of"
                 f" {prepared.pipeline.name!r} replaces it."
             )
     return messages

@@ -229,9 +229,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         columns = hungarian(cost, 1.0)
         hit = columns >= 0
         found, chosen = inactive[hit], free[columns[hit]]
-        by_look, looked = self._reacquire_by_look(
-            t, detections, inactive[~hit], np.setdiff1d(free, chosen)
-        )
+        by_look, looked = self._reacquire_by_look(t, detections, inactive[~hit], free, chosen)
         hit[np.isin(inactive, by_look)] = True
         found, chosen = np.concatenate([found, by_look]), np.concatenate([chosen, looked])
         self._restart(found, detections.points[chosen])
@@ -245,15 +243,15 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         return found, chosen
 
     def _reacquire_by_look(
-        self, t: int, detections: Detections, rows: IntArray, free: IntArray
+        self, t: int, detections: Detections, rows: IntArray, free: IntArray, taken: IntArray
     ) -> tuple[IntArray, IntArray]:
         """Re-find inactive ``rows`` anywhere by look (``appearance.anywhere_max_distance``).
 
         The group's offsets go stale while a target is lost in a crowd that walks both ways, and
         its expected place drifts away from where it is; its look does not. A target takes the
-        free detection that looks most like it when that one is within the limit and nearer in
-        look than every other detection of the frame by ``anywhere_margin`` (a bystander
-        rarely stands out from the rest of the crowd that clearly). Checked every
+        detection of ``free`` not ``taken`` that looks most like it when that one is within the
+        limit and nearer in look than every other detection of the frame by ``anywhere_margin``
+        (a bystander rarely stands out from the rest of the crowd that clearly). Checked every
         :data:`LOOK_ANYWHERE_PERIOD_S`: it describes every detection of the frame.
 
         Returns:
@@ -262,12 +260,10 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         settings = self.params.appearance
         none = np.zeros(0, dtype=np.int64)
         period = max(1, round(LOOK_ANYWHERE_PERIOD_S * self.life.fps))
-        if (
-            settings.anywhere_max_distance is None
-            or len(rows) == 0
-            or len(free) == 0
-            or t % period != 0
-        ):
+        if settings.anywhere_max_distance is None or len(rows) == 0 or t % period != 0:
+            return none, none
+        free = np.setdiff1d(free, taken)
+        if len(free) == 0:
             return none, none
         look = self.memory.looks(self.image, rows, detections, np.arange(len(detections)))
         look = np.where(np.isnan(look), np.inf, look)
