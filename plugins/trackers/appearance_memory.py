@@ -60,6 +60,14 @@ class AppearanceSettings(FiniteModel):
         description="at b, a gap matcher's match farther than this from the target's descriptor is"
         " refused and the target is lost (re-found later by re-acquisition); None keeps every match",
     )
+    gap_rematch_ratio: float | None = Field(
+        0.8,
+        gt=0.0,
+        le=1.0,
+        description="at b, a refused target re-matched by look alone takes a detection only when"
+        " its look distance is at most this times the next nearest detection's; None: the"
+        " nearest within gap_max_distance",
+    )
     anywhere_max_distance: float | None = Field(
         None,
         gt=0.0,

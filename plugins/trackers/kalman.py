@@ -16,7 +16,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from trackfw.arrays import FloatArray, IntArray, UInt8Array
+from trackfw.arrays import BoolArray, FloatArray, IntArray, UInt8Array
 from trackfw.records import (
     LOST,
     NO_MATCH,
@@ -60,6 +60,41 @@ def _cmc_registration() -> RegistrationSettings:
 #: Seconds between two searches of the whole frame for a lost target's look (each describes every
 #: detection of the frame; a returner found within 0.2 s misses at most a few frames).
 LOOK_ANYWHERE_PERIOD_S = 0.2
+
+
+def _with_second_nearest(look: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``look`` with NaN as infinity, and ``(M,)`` each row's second smallest (inf if none)."""
+    known = np.where(np.isnan(look), np.inf, look)
+    second = np.sort(known, axis=1)[:, 1] if look.shape[1] > 1 else np.full(len(look), np.inf)
+    return known, second
+
+
+def stands_out(look: FloatArray, margin: float) -> BoolArray:
+    """``(M, N)``: where detection n is nearer in look to target m than every other one by ``margin``.
+
+    ``look`` is ``(M, N)`` appearance distances over every detection of the frame (NaN: nothing
+    known, never stands out). A bystander rarely stands out from the rest of a crowd that clearly,
+    so a match by look alone, with no place to check it against, asks for this.
+
+    >>> stands_out(np.array([[0.1, 0.4, 0.5], [0.40, 0.45, 0.9]]), 0.15).tolist()
+    [[True, False, False], [False, False, False]]
+    """
+    known, second = _with_second_nearest(look)
+    return known + margin <= second[:, None]
+
+
+def nearer_by_ratio(look: FloatArray, ratio: float) -> BoolArray:
+    """``(M, N)``: where detection n's look distance to target m is at most ``ratio`` times the
+    next nearest detection's (a ratio test, as in feature matching; NaN never qualifies).
+
+    Scale-free, unlike :func:`stands_out`: person re-ID distances between the rendered people
+    of the synth preset are several times smaller than between TUD heads.
+
+    >>> nearer_by_ratio(np.array([[0.06, 0.53, 0.6], [0.44, 0.45, 0.5]]), 0.8).tolist()
+    [[True, False, False], [False, False, False]]
+    """
+    known, second = _with_second_nearest(look)
+    return known <= ratio * second[:, None]
 
 
 class KalmanTrackerParams(StageParams):
@@ -266,12 +301,9 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         if len(free) == 0:
             return none, none
         look = self.memory.looks(self.image, rows, detections, np.arange(len(detections)))
-        look = np.where(np.isnan(look), np.inf, look)
-        ordered = np.sort(look, axis=1)
-        second = ordered[:, 1] if look.shape[1] > 1 else np.full(len(rows), np.inf)
-        cost = look[:, free]
-        clear = cost + settings.anywhere_margin <= second[:, None]
-        columns = hungarian(np.where(clear, cost, np.inf), settings.anywhere_max_distance)
+        clear = stands_out(look, settings.anywhere_margin)
+        cost = np.where(clear, look, np.inf)[:, free]
+        columns = hungarian(cost, settings.anywhere_max_distance)
         hit = columns >= 0
         return rows[hit], free[columns[hit]]
 
@@ -357,7 +389,13 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         detection_rows[unlike] = NO_MATCH
         matched[unlike] = NO_MATCH
         free = np.setdiff1d(np.arange(len(detections)), detection_rows[detection_rows >= 0])
-        cost = self.memory.looks(self.image, unlike, detections, free)
+        ratio = self.params.appearance.gap_rematch_ratio
+        if ratio is None:
+            cost = self.memory.looks(self.image, unlike, detections, free)
+        else:
+            every = self.memory.looks(self.image, unlike, detections, np.arange(len(detections)))
+            clear = nearer_by_ratio(every, ratio)
+            cost = np.where(clear, every, np.inf)[:, free]
         cost[np.isnan(cost) | self.life.size_mismatch(unlike, box_sides(detections)[free])] = np.inf
         columns = hungarian(cost, limit)
         hit = columns >= 0

@@ -216,9 +216,14 @@ def test_a_match_at_b_out_of_line_with_the_groups_scale_is_tentative() -> None:
 RED, GREEN, BLUE = (0, 0, 255), (0, 255, 0), (255, 0, 0)
 
 
-def _looked_at(gap_max_distance: float | None) -> Any:
+def _looked_at(gap_max_distance: float | None, rematch_ratio: float | None = 0.8) -> Any:
     """Three targets (red, green, blue) seen once with the patch descriptor on."""
-    appearance = {"descriptor": "patch", "max_distance": 0.3, "gap_max_distance": gap_max_distance}
+    appearance = {
+        "descriptor": "patch",
+        "max_distance": 0.3,
+        "gap_max_distance": gap_max_distance,
+        "gap_rematch_ratio": rematch_ratio,
+    }
     tracker = load_registry().build_stage(
         "tracker", {"type": "kalman", "params": {"appearance": appearance}}
     )
@@ -258,6 +263,25 @@ def test_a_match_at_b_that_looks_like_someone_else_is_lost() -> None:
     assert tracker.statuses() == ["lost", "tracked", "tracked"]
     tracker.step(41, _seen(at_b))
     assert tracker.statuses()[0] == "lost"
+
+
+@pytest.mark.parametrize("ratio", [None, 0.8])
+def test_a_refused_target_is_not_rematched_between_two_heads_that_look_alike(
+    ratio: float | None,
+) -> None:
+    # Target 1 (red) walked away; the window match put it on a cyan bystander and two red
+    # bystanders stand elsewhere. Re-matched by look alone it would take one of them; when
+    # neither stands out from the other it is lost instead.
+    tracker = _looked_at(0.3, ratio)
+    at_b = GROUP + np.array([0.0, 200.0])
+    reds = np.array([[900.0, 200.0], [1100.0, 250.0]])
+    spots = [(*at_b[0], (255, 255, 0)), (*at_b[1], GREEN), (*at_b[2], BLUE)]
+    tracker.see(_painted([*spots, *((x, y, RED) for x, y in reds)]))
+    tracker.reinitialise(40, at_b, np.array([0, 1, 2]), _seen(np.vstack([at_b, reds])))
+    first = "tracked" if ratio is None else "lost"
+    assert tracker.statuses() == [first, "tracked", "tracked"]
+    if ratio is None:
+        assert tracker.states()[0].matched_detection in (3, 4)
 
 
 def _walk_out_right(tracker: Any, group: np.ndarray, sizes: list[float]) -> int:
