@@ -78,9 +78,11 @@ def stands_out(look: FloatArray, margin: float) -> BoolArray:
 
     >>> stands_out(np.array([[0.1, 0.4, 0.5], [0.40, 0.45, 0.9]]), 0.15).tolist()
     [[True, False, False], [False, False, False]]
+    >>> stands_out(np.array([[np.nan, np.nan]]), 0.15).tolist()
+    [[False, False]]
     """
     known, second = _with_second_nearest(look)
-    return known + margin <= second[:, None]
+    return np.isfinite(known) & (known + margin <= second[:, None])
 
 
 def nearer_by_ratio(look: FloatArray, ratio: float) -> BoolArray:
@@ -92,9 +94,11 @@ def nearer_by_ratio(look: FloatArray, ratio: float) -> BoolArray:
 
     >>> nearer_by_ratio(np.array([[0.06, 0.53, 0.6], [0.44, 0.45, 0.5]]), 0.8).tolist()
     [[True, False, False], [False, False, False]]
+    >>> nearer_by_ratio(np.array([[np.nan, np.nan], [0.3, np.nan]]), 0.8).tolist()
+    [[False, False], [True, False]]
     """
     known, second = _with_second_nearest(look)
-    return known <= ratio * second[:, None]
+    return np.isfinite(known) & (known <= ratio * second[:, None])
 
 
 class KalmanTrackerParams(StageParams):
