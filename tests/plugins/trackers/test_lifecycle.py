@@ -471,3 +471,29 @@ def test_no_find_anywhere_between_two_heads_that_look_alike() -> None:
     tracker.see(_painted(spots))
     tracker.step(30, _seen(np.vstack([GROUP[1:], reds])))
     assert tracker.statuses()[0] == "lost"
+
+
+def test_search_anywhere_with_a_target_never_described() -> None:
+    # Target 3 is never seen, so it has no descriptor (NaN looks): the search by look must pass
+    # it over, not hand NaN to the assignment, and still find red.
+    appearance = {"descriptor": "patch", "max_distance": 0.3, "anywhere_max_distance": 0.3}
+    tracker = load_registry().build_stage(
+        "tracker",
+        {
+            "type": "kalman",
+            "params": {"appearance": appearance, "lifecycle": {"lost_after_s": 0.2}},
+        },
+    )
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([1, 2, 3]), GROUP)
+    tracker.see(_painted([(*GROUP[0], RED), (*GROUP[1], GREEN)]))
+    tracker.step(1, _seen(GROUP[:2]))
+    for t in range(2, 27):
+        tracker.see(_painted([(*GROUP[1], GREEN)]))
+        tracker.step(t, _seen(GROUP[1:2]))
+    assert tracker.statuses() == ["lost", "tracked", "lost"]
+    red, cyan = np.array([1000.0, 600.0]), np.array([1000.0, 450.0])
+    tracker.see(_painted([(*GROUP[1], GREEN), (*red, RED), (*cyan, (255, 255, 0))]))
+    tracker.step(30, _seen(np.vstack([GROUP[1:2], red, cyan])))
+    assert tracker.statuses()[:2] == ["tracked", "tracked"]
+    assert np.allclose(tracker.positions()[0], red, atol=1.0)
