@@ -393,13 +393,12 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         detection_rows[unlike] = NO_MATCH
         matched[unlike] = NO_MATCH
         free = np.setdiff1d(np.arange(len(detections)), detection_rows[detection_rows >= 0])
+        # Every detection is described: the ratio test compares with the taken ones too.
+        look = self.memory.looks(self.image, unlike, detections, np.arange(len(detections)))
         ratio = self.params.appearance.gap_rematch_ratio
-        if ratio is None:
-            cost = self.memory.looks(self.image, unlike, detections, free)
-        else:
-            every = self.memory.looks(self.image, unlike, detections, np.arange(len(detections)))
-            clear = nearer_by_ratio(every, ratio)
-            cost = np.where(clear, every, np.inf)[:, free]
+        if ratio is not None:
+            look = np.where(nearer_by_ratio(look, ratio), look, np.inf)
+        cost = look[:, free]
         cost[np.isnan(cost) | self.life.size_mismatch(unlike, box_sides(detections)[free])] = np.inf
         columns = hungarian(cost, limit)
         hit = columns >= 0

@@ -425,8 +425,8 @@ def test_no_reentry_through_the_border_without_a_look() -> None:
     assert tracker.statuses()[0] == "out-of-view"
 
 
-def _lost_red(anywhere: float | None) -> Any:
-    """Red, green and blue targets seen with the patch descriptor; red then gone for 1 s."""
+def _searching_anywhere(anywhere: float | None) -> Any:
+    """A tracker with the patch descriptor and the search anywhere at ``anywhere``, lost at 0.2 s."""
     appearance = {"descriptor": "patch", "max_distance": 0.3, "anywhere_max_distance": anywhere}
     tracker = load_registry().build_stage(
         "tracker",
@@ -437,6 +437,12 @@ def _lost_red(anywhere: float | None) -> Any:
     )
     tracker.start(VIDEO)
     tracker.initialise(0, np.array([1, 2, 3]), GROUP)
+    return tracker
+
+
+def _lost_red(anywhere: float | None) -> Any:
+    """Red, green and blue targets seen with the patch descriptor; red then gone for 1 s."""
+    tracker = _searching_anywhere(anywhere)
     colours = (RED, GREEN, BLUE)
     tracker.see(_painted([(x, y, c) for (x, y), c in zip(GROUP, colours, strict=True)]))
     tracker.step(1, _seen(GROUP))
@@ -476,16 +482,7 @@ def test_no_find_anywhere_between_two_heads_that_look_alike() -> None:
 def test_search_anywhere_with_a_target_never_described() -> None:
     # Target 3 is never seen, so it has no descriptor (NaN looks): the search by look must pass
     # it over, not hand NaN to the assignment, and still find red.
-    appearance = {"descriptor": "patch", "max_distance": 0.3, "anywhere_max_distance": 0.3}
-    tracker = load_registry().build_stage(
-        "tracker",
-        {
-            "type": "kalman",
-            "params": {"appearance": appearance, "lifecycle": {"lost_after_s": 0.2}},
-        },
-    )
-    tracker.start(VIDEO)
-    tracker.initialise(0, np.array([1, 2, 3]), GROUP)
+    tracker = _searching_anywhere(0.3)
     tracker.see(_painted([(*GROUP[0], RED), (*GROUP[1], GREEN)]))
     tracker.step(1, _seen(GROUP[:2]))
     for t in range(2, 27):
