@@ -31,6 +31,7 @@ from trackfw.errors import UserError
 from trackfw.front import FrameFront, FrameRecord, Observation
 from trackfw.pipeline import Pipeline
 from trackfw.records import (
+    LOOKBACK_S,
     LOST,
     NO_MATCH,
     OUT_OF_VIEW,
@@ -289,7 +290,7 @@ class _OnlineLoop:
         self.initialised_from = chosen.source
         self.stages.tracker.initialise(observation.t, chosen.ids, chosen.positions)
         _time(observation, "tracker", observation.done_at)
-        return Segment(chosen.ids)
+        return Segment(chosen.ids, round(LOOKBACK_S * self.video.fps))
 
     def _relink(self, segment: Segment, b: Observation) -> Segment:
         """Solve the gap from the segment's frame ``a`` to ``b``; the new segment starts at b.

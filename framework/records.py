@@ -29,6 +29,10 @@ OUT_OF_VIEW = "out-of-view"
 TENTATIVE = "tentative"
 #: Every target state, in the order of the frames.csv count columns.
 TARGET_STATES = (TRACKED, LOST, OUT_OF_VIEW, TENTATIVE)
+#: Seconds before frame ``a`` of the segment frame a gap problem carries as its look-back
+#: (:class:`LookBack`): long enough for a walker to move several pixels, short enough for the
+#: camera's sway to stay one registration.
+LOOKBACK_S = 0.4
 
 
 @dataclass(frozen=True)
@@ -224,6 +228,26 @@ class TargetState:
 
 
 @dataclass
+class LookBack:
+    """A frame shortly before ``a`` in the same segment, for the walkers' own motion.
+
+    Between it and ``a`` the camera sways; registering its scene onto frame ``a`` separates
+    that sway from the people's walking, which the positions alone mix.
+
+    Attributes:
+        t: its 0-based frame index (``t < a``).
+        image: its pixels, or None when no stage needs pixels.
+        detections: its detections (their boxes keep the people out of the registration).
+        positions: ``(K, 2)`` the targets' tracked positions on it, in the problem's order.
+    """
+
+    t: int
+    image: NDArray[np.uint8] | None
+    detections: Detections
+    positions: FloatArray
+
+
+@dataclass
 class GapProblem:
     """Everything a gap matcher may use to re-link the targets after an interval.
 
@@ -238,6 +262,8 @@ class GapProblem:
         frame_b: pixels of frame ``b`` or None.
         video: the video.
         detections_a: detections on frame ``a`` (head sizes at ``a``, appearance), if known.
+        lookback: the segment's frame :data:`LOOKBACK_S` before ``a`` (or its first frame when
+            the segment is shorter), or None when the segment has a single frame.
     """
 
     interval: Interval
@@ -249,6 +275,7 @@ class GapProblem:
     frame_b: NDArray[np.uint8] | None
     video: VideoContext
     detections_a: Detections | None = None
+    lookback: LookBack | None = None
 
     @property
     def horizon(self) -> int:

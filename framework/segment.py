@@ -8,13 +8,14 @@ a new segment starts on frame ``b`` for the same targets.
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from trackfw.arrays import FloatArray, IntArray
 from trackfw.front import Observation
-from trackfw.records import GapProblem, Interval, TargetState, VideoContext
+from trackfw.records import GapProblem, Interval, LookBack, TargetState, VideoContext
 
 
 @dataclass
@@ -23,19 +24,27 @@ class Segment:
 
     Attributes:
         target_ids: ``(K,)`` identities, in the order of every per-target array.
+        lookback_frames: how many frames before ``a`` the gap problem's look-back lies.
         positions: per frame of the segment, oldest first, ``(K, 2)`` tracked positions.
         last: the segment's latest frame (frame ``a`` once an interval begins), or None before
             its first frame.
     """
 
     target_ids: IntArray
+    lookback_frames: int = 0
     positions: list[FloatArray] = field(default_factory=list)
     last: Observation | None = None
+    # The latest frames (with their row in positions), oldest first: the look-back is the
+    # oldest, so only lookback_frames + 1 frames' pixels are held.
+    recent: deque[tuple[Observation, int]] = field(default_factory=deque)
 
     def add(self, observation: Observation, positions: FloatArray) -> None:
         """Record the ``(K, 2)`` tracked positions on an informative frame."""
         self.positions.append(positions)
         self.last = observation
+        self.recent.append((observation, len(self.positions) - 1))
+        while observation.t - self.recent[0][0].t > self.lookback_frames:
+            self.recent.popleft()
 
     def histories(self) -> list[FloatArray]:
         """Per target, ``(n, 2)`` positions over the segment, oldest first."""
@@ -70,6 +79,17 @@ class Segment:
             raise ValueError("a gap problem needs a segment with at least one frame")
         taking_part = np.arange(len(self.target_ids)) if rows is None else np.asarray(rows)
         histories = self.histories()
+        earliest, row = self.recent[0] if self.recent else (a, 0)
+        lookback = (
+            LookBack(
+                t=earliest.t,
+                image=earliest.image,
+                detections=earliest.detections,
+                positions=self.positions[row][taking_part],
+            )
+            if earliest.t < a.t
+            else None
+        )
         return GapProblem(
             interval=self.interval_to(b.t),
             target_ids=self.target_ids[taking_part],
@@ -80,11 +100,12 @@ class Segment:
             detections_a=a.detections,
             frame_b=b.image,
             video=video,
+            lookback=lookback,
         )
 
     def next(self) -> Segment:
         """A new, empty segment for the same targets (after an interval)."""
-        return Segment(self.target_ids)
+        return Segment(self.target_ids, self.lookback_frames)
 
 
 __all__ = ["Segment"]

@@ -71,3 +71,30 @@ def test_segment_histories_and_gap_problem_come_from_its_frames() -> None:
     assert len(problem.detections) == 2 and problem.target_ids.tolist() == [4, 8]
     after = segment.next()
     assert after.target_ids is segment.target_ids and after.positions == [] and after.last is None
+
+
+def test_the_gap_problem_carries_the_frame_lookback_frames_before_a() -> None:
+    # Frames 0..9 of a segment with a look-back of 4 frames: the problem carries frame 5 (a is
+    # 9), its detections and the positions of the targets taking part, and only frames 5..9
+    # are held.
+    segment = Segment(np.array([4, 8], dtype=np.int64), lookback_frames=4)
+    for t in range(10):
+        segment.add(_observation(t, [[float(t), 0.0]]), np.array([[t, 0.0], [10.0 + t, 1.0]]))
+    assert [observation.t for observation, _ in segment.recent] == [5, 6, 7, 8, 9]
+    states = [TargetState(4, np.array([9.0, 0.0])), TargetState(8, np.array([19.0, 1.0]))]
+    b = _observation(20, [[5.0, 5.0]])
+    problem = segment.gap_problem(b, states, VideoContext("v", "v", 30, 4, 4), np.array([1]))
+    lookback = problem.lookback
+    assert lookback is not None and lookback.t == 5
+    assert lookback.image is not None and int(lookback.image[0, 0, 0]) == 5
+    assert lookback.detections.points.tolist() == [[5.0, 0.0]]
+    assert lookback.positions.tolist() == [[15.0, 1.0]]
+    assert segment.next().lookback_frames == 4
+
+
+def test_a_segment_of_one_frame_has_no_lookback() -> None:
+    segment = Segment(np.array([4], dtype=np.int64), lookback_frames=4)
+    segment.add(_observation(3, [[1.0, 0.0]]), np.array([[1.0, 0.0]]))
+    states = [TargetState(4, np.array([1.0, 0.0]))]
+    problem = segment.gap_problem(_observation(9, []), states, VideoContext("v", "v", 10, 4, 4))
+    assert problem.lookback is None

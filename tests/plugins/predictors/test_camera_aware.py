@@ -11,6 +11,7 @@ from trackfw.records import (
     Detections,
     GapProblem,
     Interval,
+    LookBack,
     Prediction,
     TargetState,
     VideoContext,
@@ -63,6 +64,7 @@ def test_registered_candidates_follow_the_camera(textured_frame: Callable[..., n
     problem, _ = _problem(textured_frame, (60.0, -25.0), scene_moves=True)
     candidates = CameraAwarePredictor().predict(problem)
     labels = [candidate.label for candidate in candidates]
+    # No look-back frame in this problem: no reg-walk.
     assert labels == ["ar1", "ar2", "ar3", "reg-ar1", "reg-ar2", "reg-ar3", "continuity"]
     registered = candidates[3]
     assert registered.gate is not None and candidates[0].gate is None
@@ -113,3 +115,27 @@ def test_window_search_is_skipped_only_when_it_cannot_win() -> None:
     results, _ = score_candidates([*free, astray], detections, None, params, None, 1.0)
     assert all(r.diagnostics.fallback != "bound" for r in results[:3])
     assert select_candidate(results) < 3
+
+
+def test_the_walk_is_measured_with_the_cameras_sway_registered_out(
+    textured_frame: Callable[..., np.ndarray],
+) -> None:
+    # The targets walk 2 px per frame to the right. Between the look-back frame (a - 10) and a
+    # the camera swayed, so the scene (and every head) stood 30 px further right on the
+    # look-back frame: the image positions say the targets walked left. After the interval
+    # (20 frames) the camera has panned by (60, -25).
+    problem, _ = _problem(textured_frame, (60.0, -25.0), scene_moves=True)
+    at_a = problem.positions_at_a
+    problem.lookback = LookBack(
+        t=30,
+        image=textured_frame(5, 30.0),
+        detections=Detections.from_points(np.zeros((0, 2))),
+        positions=at_a - np.array([20.0, 0.0]) + np.array([30.0, 0.0]),
+    )
+    candidates = {c.label: c for c in CameraAwarePredictor().predict(problem)}
+    walked = candidates["reg-walk"]
+    assert walked.gate == candidates["reg-ar1"].gate
+    expected = at_a + np.array([2.0 * 20, 0.0]) + np.array([60.0, -25.0])
+    np.testing.assert_allclose(walked.positions, expected, atol=3.0)
+    off = CameraAwarePredictor(CameraAwareParams(walk=False)).predict(problem)
+    assert "reg-walk" not in [candidate.label for candidate in off]
