@@ -34,16 +34,16 @@ class Segment:
     lookback_frames: int = 0
     positions: list[FloatArray] = field(default_factory=list)
     last: Observation | None = None
-    # The latest frames (with their row in positions), oldest first: the look-back is the
-    # oldest, so only lookback_frames + 1 frames' pixels are held.
-    recent: deque[tuple[Observation, int]] = field(default_factory=deque)
+    # The latest frames, oldest first (the last len(recent) rows of positions): the look-back
+    # is the oldest, so only lookback_frames + 1 frames' pixels are held.
+    recent: deque[Observation] = field(default_factory=deque)
 
     def add(self, observation: Observation, positions: FloatArray) -> None:
         """Record the ``(K, 2)`` tracked positions on an informative frame."""
         self.positions.append(positions)
         self.last = observation
-        self.recent.append((observation, len(self.positions) - 1))
-        while observation.t - self.recent[0][0].t > self.lookback_frames:
+        self.recent.append(observation)
+        while observation.t - self.recent[0].t > self.lookback_frames:
             self.recent.popleft()
 
     def histories(self) -> list[FloatArray]:
@@ -79,13 +79,13 @@ class Segment:
             raise ValueError("a gap problem needs a segment with at least one frame")
         taking_part = np.arange(len(self.target_ids)) if rows is None else np.asarray(rows)
         histories = self.histories()
-        earliest, row = self.recent[0] if self.recent else (a, 0)
+        earliest = self.recent[0]  # a frame was added, so there is one
         lookback = (
             LookBack(
                 t=earliest.t,
                 image=earliest.image,
                 detections=earliest.detections,
-                positions=self.positions[row][taking_part],
+                positions=self.positions[-len(self.recent)][taking_part],
             )
             if earliest.t < a.t
             else None

@@ -92,6 +92,8 @@ def walked_forecast(problem: GapProblem, scene: RegistrationSettings) -> FloatAr
     if lookback is None or lookback.image is None or problem.frame_a is None:
         return None
     steps = problem.interval.a - lookback.t
+    if steps <= 0:
+        return None
     registration = register_scene(
         lookback.image,
         problem.frame_a,
@@ -99,7 +101,7 @@ def walked_forecast(problem: GapProblem, scene: RegistrationSettings) -> FloatAr
         problem.detections_a.boxes if problem.detections_a is not None else None,
         scene,
     )
-    if steps <= 0 or not registration.ok:
+    if not registration.ok:
         return None
     at_a = problem.positions_at_a
     velocity = (at_a - registration.apply(lookback.positions)) / steps

@@ -80,7 +80,7 @@ def test_the_gap_problem_carries_the_frame_lookback_frames_before_a() -> None:
     segment = Segment(np.array([4, 8], dtype=np.int64), lookback_frames=4)
     for t in range(10):
         segment.add(_observation(t, [[float(t), 0.0]]), np.array([[t, 0.0], [10.0 + t, 1.0]]))
-    assert [observation.t for observation, _ in segment.recent] == [5, 6, 7, 8, 9]
+    assert [observation.t for observation in segment.recent] == [5, 6, 7, 8, 9]
     states = [TargetState(4, np.array([9.0, 0.0])), TargetState(8, np.array([19.0, 1.0]))]
     b = _observation(20, [[5.0, 5.0]])
     problem = segment.gap_problem(b, states, VideoContext("v", "v", 30, 4, 4), np.array([1]))
