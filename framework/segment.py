@@ -26,22 +26,24 @@ class Segment:
         target_ids: ``(K,)`` identities, in the order of every per-target array.
         lookback_frames: how many frames before ``a`` the gap problem's look-back lies.
         positions: per frame of the segment, oldest first, ``(K, 2)`` tracked positions.
-        last: the segment's latest frame (frame ``a`` once an interval begins), or None before
-            its first frame.
     """
 
     target_ids: IntArray
     lookback_frames: int = 0
     positions: list[FloatArray] = field(default_factory=list)
-    last: Observation | None = None
     # The latest frames, oldest first (the last len(recent) rows of positions): the look-back
     # is the oldest, so only lookback_frames + 1 frames' pixels are held.
     recent: deque[Observation] = field(default_factory=deque)
 
+    @property
+    def last(self) -> Observation | None:
+        """The segment's latest frame (frame ``a`` once an interval begins), or None before its
+        first frame."""
+        return self.recent[-1] if self.recent else None
+
     def add(self, observation: Observation, positions: FloatArray) -> None:
         """Record the ``(K, 2)`` tracked positions on an informative frame."""
         self.positions.append(positions)
-        self.last = observation
         self.recent.append(observation)
         while observation.t - self.recent[0].t > self.lookback_frames:
             self.recent.popleft()

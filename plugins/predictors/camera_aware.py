@@ -28,7 +28,12 @@ from pydantic import Field
 from trackfw.arrays import FloatArray
 from trackfw.records import GapProblem, Prediction
 from trackfw.stages import Predictor, StageParams
-from trackfw_plugins.maths.scene_registration import RegistrationSettings, register_scene
+from trackfw_plugins.maths.scene_registration import (
+    RegistrationSettings,
+    SceneFeatures,
+    register_features,
+    scene_features,
+)
 from trackfw_plugins.predictors.ar import ArParams, ArPredictor
 from trackfw_plugins.predictors.kalman import KalmanPredictor
 
@@ -76,7 +81,9 @@ class CameraAwareParams(StageParams):
     )
 
 
-def walked_forecast(problem: GapProblem, scene: RegistrationSettings) -> FloatArray | None:
+def walked_forecast(
+    problem: GapProblem, features_a: SceneFeatures, scene: RegistrationSettings
+) -> FloatArray | None:
     """``(K, 2)`` where each target would stand on frame a's geometry at b, walking on as it
     walked from the look-back frame to a.
 
@@ -85,21 +92,22 @@ def walked_forecast(problem: GapProblem, scene: RegistrationSettings) -> FloatAr
     virtual-wearer gaps a constant-velocity walk measured this way came within 11 px of the
     head at b, median, against 35 px for the AR forecasts of the raw positions).
 
+    Args:
+        problem: the gap problem (its look-back frame and positions at a).
+        features_a: frame a's scene features (found once for this and the a -> b registration).
+        scene: the registration settings.
+
     Returns:
         None without a look-back frame with pixels, or when it does not register onto a.
     """
     lookback = problem.lookback
-    if lookback is None or lookback.image is None or problem.frame_a is None:
+    if lookback is None or lookback.image is None:
         return None
     steps = problem.interval.a - lookback.t
     if steps <= 0:
         return None
-    registration = register_scene(
-        lookback.image,
-        problem.frame_a,
-        lookback.detections.boxes,
-        problem.detections_a.boxes if problem.detections_a is not None else None,
-        scene,
+    registration = register_features(
+        scene_features(lookback.image, lookback.detections.boxes, scene), features_a, scene
     )
     if not registration.ok:
         return None
@@ -136,11 +144,11 @@ class CameraAwarePredictor(Predictor[CameraAwareParams]):
         candidates = list(forecasts) if params.free_ar else []
         registration = None
         if params.registration and problem.frame_a is not None and problem.frame_b is not None:
-            registration = register_scene(
-                problem.frame_a,
-                problem.frame_b,
-                problem.detections_a.boxes if problem.detections_a is not None else None,
-                problem.detections.boxes,
+            boxes_a = problem.detections_a.boxes if problem.detections_a is not None else None
+            features_a = scene_features(problem.frame_a, boxes_a, params.scene)
+            registration = register_features(
+                features_a,
+                scene_features(problem.frame_b, problem.detections.boxes, params.scene),
                 params.scene,
             )
             if registration.ok:
@@ -154,7 +162,7 @@ class CameraAwarePredictor(Predictor[CameraAwareParams]):
                     )
                     for forecast in forecasts
                 ]
-                walked = walked_forecast(problem, params.scene) if params.walk else None
+                walked = walked_forecast(problem, features_a, params.scene) if params.walk else None
                 if walked is not None:
                     candidates.append(
                         Prediction(
