@@ -62,6 +62,11 @@ def _cmc_registration() -> RegistrationSettings:
 LOOK_ANYWHERE_PERIOD_S = 0.2
 
 
+#: Beyond the usual gate a not yet seen target takes only a detection at most 1/this as far as
+#: the next one.
+START_CLEAR_RATIO = 3.0
+
+
 def _with_second_nearest(look: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``look`` with NaN as infinity, and ``(M,)`` each row's second smallest (inf if none)."""
     known = np.where(np.isnan(look), np.inf, look)
@@ -116,6 +121,13 @@ class KalmanTrackerParams(StageParams):
         50.0,
         gt=0.0,
         description="association gate in pixels at 1080p, scaled by height/1080; null = no gate",
+    )
+    start_gate_px_at_1080: float | None = Field(
+        None,
+        gt=0.0,
+        description="association gate of a target not yet seen by the detector since its given"
+        " start position, for a detection at most a third as far as the next one, pixels at"
+        " 1080p; null = gate_px_at_1080",
     )
     P0: float = Field(PAPER_P0, gt=0.0, description="initial state variance (P0 = P0 * I4)")
     Q: float = Field(PAPER_Q, gt=0.0, description="transition noise variance (Q = Q * I4)")
@@ -174,6 +186,9 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.target_ids = np.asarray(target_ids, dtype=np.int64)
         self.bank = KalmanBank.start(positions, params.P0, params.Q, params.R)
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
+        # Given start positions (a dataset's gt, a user's clicks) are not where the detector puts
+        # the same heads: until a detection supports a target its gate may be wider.
+        self.unseen = np.ones(len(self.target_ids), dtype=bool)
         self.life = Lifecycle.start(params.lifecycle, self.video, t, positions)
         self.memory = AppearanceMemory(
             params.appearance, len(positions), self.video.height, self.life.fps
@@ -202,7 +217,18 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         cost[mismatch] = np.inf
         if self.params.association == "nearest":
             return greedy_nearest(cost, self.gate)
-        return hungarian(cost, self.gate)
+        start = self.params.start_gate_px_at_1080
+        unseen = self.unseen[targets]
+        if start is None or self.gate is None or not unseen.any():
+            return hungarian(cost, self.gate)
+        # Beyond the usual gate only a clearly nearest detection: another one nearby may be a
+        # bystander whose head the detector found while missing the target's.
+        nearest = np.sort(cost, axis=1)
+        second = nearest[:, 1] if cost.shape[1] > 1 else np.full(len(cost), np.inf)
+        clear = (cost <= nearest[:, :1]) & (second[:, None] >= START_CLEAR_RATIO * cost)
+        start_gate = start * self.video.height / 1080.0
+        wide = unseen[:, None] & clear & (cost <= start_gate)
+        return hungarian(np.where((cost <= self.gate) | wide, cost, np.inf), start_gate)
 
     def step(self, t: int, detections: Detections) -> None:
         """Predict, associate the tracked and tentative targets, re-acquire the others."""
@@ -215,6 +241,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         hit = rows >= 0
         targets = active[hit]
         self.bank.correct(targets, detections.points[rows[hit]])
+        self.unseen[targets] = False
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
         self.matched[targets] = detections.index[rows[hit]]
         sides = box_sides(detections)

@@ -40,6 +40,26 @@ def test_tracked_then_lost_after_the_set_time_and_not_before() -> None:
     assert tracker.states()[1].status == "lost"
 
 
+@pytest.mark.parametrize("start_gate", [None, 100.0])
+def test_a_start_position_off_the_detectors_head_is_taken_with_the_start_gate(
+    start_gate: float | None,
+) -> None:
+    # Given start positions 45 px above the heads the detector finds (gate 33.3 px at 720p,
+    # start gate 66.7 px); a bystander 80 px below target 3's head is 125 px from its start, not
+    # three times as far as its head: that head is not clearly its own.
+    tracker = load_registry().build_stage(
+        "tracker", {"type": "kalman", "params": {"start_gate_px_at_1080": start_gate}}
+    )
+    tracker.start(VIDEO)
+    starts = np.array([[200.0, 300.0], [500.0, 300.0], [800.0, 300.0]])
+    tracker.initialise(0, np.array([1, 2, 3]), starts)
+    heads = starts + np.array([0.0, 45.0])
+    bystander = heads[2] + np.array([0.0, 80.0])
+    tracker.step(1, _seen(np.vstack([heads, bystander])))
+    matched = [state.matched_detection for state in tracker.states()]
+    assert matched == ([0, 1, -1] if start_gate else [-1, -1, -1])
+
+
 def test_lost_target_is_reacquired_with_its_old_id_where_the_group_says() -> None:
     # Target 2 vanishes for 3 s while the camera pans: the whole group drifts 120 px right.
     # It comes back where its offset to the group puts it, 120 px from where it was last
