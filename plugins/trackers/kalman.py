@@ -62,9 +62,9 @@ def _cmc_registration() -> RegistrationSettings:
 LOOK_ANYWHERE_PERIOD_S = 0.2
 
 
-#: Beyond the usual gate a not yet seen target takes only a detection at most 1/this as far as
-#: the next one.
-START_CLEAR_RATIO = 3.0
+#: Beyond the usual gate a not yet seen target takes only a detection at most this times as far
+#: as the next one.
+START_NEARER_RATIO = 1.0 / 3.0
 
 
 def _with_second_nearest(look: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -91,8 +91,9 @@ def stands_out(look: FloatArray, margin: float) -> BoolArray:
 
 
 def nearer_by_ratio(look: FloatArray, ratio: float) -> BoolArray:
-    """``(M, N)``: where detection n's look distance to target m is at most ``ratio`` times the
-    next nearest detection's (a ratio test, as in feature matching; NaN never qualifies).
+    """``(M, N)``: where detection n's distance to target m (in look, or in pixels) is at most
+    ``ratio`` times the next nearest detection's (a ratio test, as in feature matching; NaN
+    never qualifies).
 
     Scale-free, unlike :func:`stands_out`: person re-ID distances between the rendered people
     of the synth preset are several times smaller than between TUD heads.
@@ -188,7 +189,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
         # Given start positions (a dataset's gt, a user's clicks) are not where the detector puts
         # the same heads: until a detection supports a target its gate may be wider.
-        self.unseen = np.ones(len(self.target_ids), dtype=bool)
+        self.started_at = t
         self.life = Lifecycle.start(params.lifecycle, self.video, t, positions)
         self.memory = AppearanceMemory(
             params.appearance, len(positions), self.video.height, self.life.fps
@@ -218,14 +219,12 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         if self.params.association == "nearest":
             return greedy_nearest(cost, self.gate)
         start = self.params.start_gate_px_at_1080
-        unseen = self.unseen[targets]
+        unseen = self.life.last_matched[targets] <= self.started_at
         if start is None or self.gate is None or not unseen.any():
             return hungarian(cost, self.gate)
         # Beyond the usual gate only a clearly nearest detection: another one nearby may be a
         # bystander whose head the detector found while missing the target's.
-        nearest = np.sort(cost, axis=1)
-        second = nearest[:, 1] if cost.shape[1] > 1 else np.full(len(cost), np.inf)
-        clear = (cost <= nearest[:, :1]) & (second[:, None] >= START_CLEAR_RATIO * cost)
+        clear = nearer_by_ratio(cost, START_NEARER_RATIO)
         start_gate = start * self.video.height / 1080.0
         wide = unseen[:, None] & clear & (cost <= start_gate)
         return hungarian(np.where((cost <= self.gate) | wide, cost, np.inf), start_gate)
@@ -241,7 +240,6 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         hit = rows >= 0
         targets = active[hit]
         self.bank.correct(targets, detections.points[rows[hit]])
-        self.unseen[targets] = False
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
         self.matched[targets] = detections.index[rows[hit]]
         sides = box_sides(detections)
