@@ -143,6 +143,9 @@ def _metrics_row(
         "FN": float(clear.n_misses),
         "IDSW": float(clear.n_switches),
         "IDSW-In": float(clear_in.n_switches) if clear_in is not None else nan,
+        # What MOTA-In loses, split as IDSW-In is: misses and false positives on (a, b, b+1).
+        "FP-In": float(clear_in.n_false_positives) if clear_in is not None else nan,
+        "FN-In": float(clear_in.n_misses) if clear_in is not None else nan,
         "MT": float(clear.mostly_tracked),
         "PT": float(clear.partially_tracked),
         "ML": float(clear.mostly_lost),

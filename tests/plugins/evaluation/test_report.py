@@ -138,6 +138,8 @@ def test_missed_target_changes_counts_exactly(
     assert (row["FN"], row["FP"], row["IDSW"]) == (1.0, 0.0, 0.0)
     assert row["MOTA"] == pytest.approx(100.0 * (1 - 1 / 75))
     assert row["MOTA-In"] == pytest.approx(100.0 * (1 - 1 / 9))
+    # Frame 15 is b of the interval: the miss is MOTA-In's one error, split out as FN-In.
+    assert (row["FN-In"], row["FP-In"], row["IDSW-In"]) == (1.0, 0.0, 0.0)
 
 
 def test_reports_are_written(folders: tuple[Path, Path], tmp_path: Path) -> None:
