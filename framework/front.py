@@ -4,11 +4,16 @@ The front reads the video and turns each frame into an :class:`Observation`: its
 its info-less decision, with the milliseconds they took. Live, the detector and the classifier
 run; from a stage cache, their recorded outputs are replayed. Either way the first readable frame
 (the one the targets are initialised on) is informative, whatever the classifier said.
+
+A classifier with ``hindsight_frames`` may revise its last info-less decisions when it leaves an
+interval (docs/algorithms/index.md#the-online-loop); the front then holds back info-less frames
+that long, so that the tracking only ever sees final decisions, in frame order.
 """
 
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -112,6 +117,13 @@ class FrameFront:
         self.decode = decode
 
     def __iter__(self) -> Iterator[Observation]:
+        # A classifier that decides in hindsight may turn the last few info-less frames
+        # informative once it leaves an interval: those frames wait here, in order, until their
+        # decision is final. A replay holds the final decisions already.
+        window = 0
+        if self.replay is None and self.classifier is not None:
+            window = self.classifier.hindsight_frames
+        held: deque[Observation] = deque()
         first = True
         for t, image, status in iter_frames(self.video, decode=self.decode):
             if self.progress is not None:
@@ -119,12 +131,27 @@ class FrameFront:
             if self.replay is not None and status == "ok":
                 status = self.replay.status_of(t)
             if status != "ok":
-                yield Observation(FrameRecord(t, status), image, done_at=time.perf_counter())
+                observation, revises = (
+                    Observation(FrameRecord(t, status), image, done_at=time.perf_counter()),
+                    0,
+                )
+            else:
+                observation, revises = self._observe(t, image, first)
+                first = False
+            if window and observation.readable and observation.infoless:
+                held.append(observation)
+                if len(held) > window:
+                    yield _released(held.popleft())
                 continue
-            yield self._observe(t, image, first)
-            first = False
+            for revised in list(held)[len(held) - min(revises, len(held)) :]:
+                revised.record.infoless = False
+            while held:
+                yield _released(held.popleft())
+            yield observation
+        while held:
+            yield _released(held.popleft())
 
-    def _observe(self, t: int, image: UInt8Array | None, first: bool) -> Observation:
+    def _observe(self, t: int, image: UInt8Array | None, first: bool) -> tuple[Observation, int]:
         record = FrameRecord(t, "ok")
         if self.replay is None:
             frame = FrameData(t, image, self.video, first)
@@ -134,13 +161,16 @@ class FrameFront:
             record.milliseconds["detector"] = (tock - tick) * 1e3
             probability: float | None = None
             said_infoless = False
+            revises = 0
             if self.classifier is not None:
                 decision = self.classifier.classify(frame, detections)
                 record.milliseconds["classifier"] = (time.perf_counter() - tock) * 1e3
                 probability, said_infoless = float(decision.probability), bool(decision.infoless)
+                revises = 0 if said_infoless else max(0, int(decision.revises))
             done = time.perf_counter()
         else:
             detections, recorded, said_infoless, detector_ms, classifier_ms = self.replay.frame(t)
+            revises = 0
             record.milliseconds["detector"] = detector_ms
             probability = recorded
             if self.classifier is not None:
@@ -152,7 +182,13 @@ class FrameFront:
         # The first frame carries the annotation: it is informative whatever was said.
         record.infoless = said_infoless and not first
         record.detections = detections
-        return Observation(record, image, first, done)
+        return Observation(record, image, first, done), revises
+
+
+def _released(observation: Observation) -> Observation:
+    """``observation`` leaving the hindsight queue: the tracking's timings start now."""
+    observation.done_at = time.perf_counter()
+    return observation
 
 
 __all__ = ["FrameFront", "FrameRecord", "Observation"]

@@ -197,11 +197,16 @@ class ClassifierDecision:
         probability: probability (or a score mapped to [0, 1]) that the frame is info-less.
         infoless: the decision.
         features: optional feature vector, for logging and caching.
+        revises: on an informative frame, how many of the frames just before it, decided
+            info-less, are informative after all: a decision in hindsight at the end of an
+            interval, at most the classifier's ``hindsight_frames``
+            (docs/algorithms/index.md#the-online-loop).
     """
 
     probability: float
     infoless: bool
     features: FloatArray | None = None
+    revises: int = 0
 
 
 @dataclass

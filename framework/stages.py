@@ -216,6 +216,15 @@ class Classifier(Stage[P]):
         later decisions depend on earlier ones should decide it informative.
         """
 
+    @property
+    def hindsight_frames(self) -> int:
+        """The most frames a later decision may turn from info-less to informative.
+
+        The front holds back that many info-less frames before the tracking sees them
+        (:attr:`ClassifierDecision.revises`); 0, the default, keeps every decision final at once.
+        """
+        return 0
+
 
 class Tracker(Stage[P]):
     """Tracks the fixed set of targets inside a segment (between info-less intervals)."""

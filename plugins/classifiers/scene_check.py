@@ -81,6 +81,11 @@ class SceneCheckClassifier(Classifier[SceneCheckParams]):
         self._anchor: np.ndarray | None = None
         self._anchor_boxes: np.ndarray | None = None
 
+    @property
+    def hindsight_frames(self) -> int:
+        """The SVM's ``hindsight_frames``."""
+        return self.svm.hindsight_frames
+
     def start(self, video: VideoContext) -> None:
         """Forget the previous video's frames, reference, interval state and anchor."""
         self.svm.start(video)
@@ -106,7 +111,12 @@ class SceneCheckClassifier(Classifier[SceneCheckParams]):
         if not infoless:
             self._anchor = frame.image.copy()
             self._anchor_boxes = detections.boxes
-        return ClassifierDecision(probability=probability, infoless=infoless, features=features)
+        return ClassifierDecision(
+            probability=probability,
+            infoless=infoless,
+            features=features,
+            revises=svm.revision(infoless, features),
+        )
 
 
 __all__ = ["SceneCheckClassifier", "SceneCheckParams", "small_motion"]

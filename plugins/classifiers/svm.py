@@ -37,9 +37,11 @@ from typing import Any
 
 from pydantic import Field, field_validator
 
+from trackfw.arrays import FloatArray
 from trackfw.errors import UserError
 from trackfw.records import ClassifierDecision, Detections, FrameData, VideoContext
 from trackfw.stages import Classifier, StageParams
+from trackfw_plugins.classifiers.hindsight import EndHindsight
 from trackfw_plugins.classifiers.infoless_features import (
     DEFAULT_C_MAX,
     FEATURE_LAYOUT,
@@ -184,6 +186,22 @@ class SvmParams(StageParams):
     c_max: float | None = Field(
         default=None, gt=0.0, description="Clip of C_t; empty for the model's own (10)."
     )
+    hindsight_frames: int = Field(
+        default=0,
+        ge=0,
+        le=25,
+        description="On leaving an interval, the most frames just before, decided info-less, that"
+        " may turn informative: the camera stood still from each to the next and it shows"
+        " people (OURS; 0, the paper's, never revises).",
+    )
+    hindsight_max_motion: float = Field(
+        default=4.0,
+        ge=0.0,
+        description="The largest M (working-resolution pixels) from a revised frame to the next.",
+    )
+    hindsight_min_detections: int = Field(
+        default=1, ge=0, description="The fewest detections on a revised frame."
+    )
 
     @field_validator("history")
     @classmethod
@@ -269,11 +287,28 @@ class SvmClassifier(Classifier[SvmParams]):
             self.model, self.params, self.params.model or SHIPPED_MODEL
         )
         self.decider = OnlineDecider(self.rules, self.extractor.assembler)
+        self.hindsight = EndHindsight(
+            self.params.hindsight_frames,
+            self.params.hindsight_max_motion,
+            self.params.hindsight_min_detections,
+        )
+
+    @property
+    def hindsight_frames(self) -> int:
+        """``hindsight_frames``: how far back leaving an interval may revise decisions."""
+        return self.params.hindsight_frames
 
     def start(self, video: VideoContext) -> None:
         """Forget the previous video's frames, reference and interval state."""
         self.extractor.reset()
         self.decider.reset()
+        self.hindsight.reset()
+
+    def revision(self, infoless: bool, features: FloatArray) -> int:
+        """How many frames before the latest one its decision turns informative (hindsight)."""
+        return self.hindsight.push(
+            infoless, float(features[HISTORY - 1]), float(features[2 * HISTORY - 1])
+        )
 
     def classify(self, frame: FrameData, detections: Detections) -> ClassifierDecision:
         """Probability and label of ``frame``; needs its pixels."""
@@ -285,4 +320,9 @@ class SvmClassifier(Classifier[SvmParams]):
         # first frame is informative: it sets the reference of C_t.
         infoless = self.decider.decide(probability, features) and not frame.first
         self.decider.settle(frame.t, infoless, features)
-        return ClassifierDecision(probability=probability, infoless=infoless, features=features)
+        return ClassifierDecision(
+            probability=probability,
+            infoless=infoless,
+            features=features,
+            revises=self.revision(infoless, features),
+        )

@@ -98,3 +98,62 @@ def test_a_segment_of_one_frame_has_no_lookback() -> None:
     states = [TargetState(4, np.array([1.0, 0.0]))]
     problem = segment.gap_problem(_observation(9, []), states, VideoContext("v", "v", 10, 4, 4))
     assert problem.lookback is None
+
+
+class Scripted(Classifier):
+    """Decides each frame from a script of ``(info-less, revises)``; logs when it is called."""
+
+    name = "scripted"
+
+    def __init__(self, script: list[tuple[bool, int]], hindsight: int) -> None:
+        super().__init__()
+        self.script = script
+        self.hindsight = hindsight
+        self.classified: list[int] = []
+
+    @property
+    def hindsight_frames(self) -> int:
+        return self.hindsight
+
+    def classify(self, frame: FrameData, detections: Detections) -> ClassifierDecision:
+        self.classified.append(frame.t)
+        infoless, revises = self.script[frame.t]
+        return ClassifierDecision(probability=0.5, infoless=infoless, revises=revises)
+
+
+def _front(points_video, script: list[tuple[bool, int]], hindsight: int):
+    video = load_video(points_video("v", n_frames=len(script), intervals=[]))
+    classifier = Scripted(script, hindsight)
+    front = FrameFront(video, TwoPoints(), classifier, None, False)
+    return front, classifier
+
+
+def test_hindsight_revises_the_end_of_an_interval_before_tracking_sees_it(points_video) -> None:
+    # Frames 2..6 decided info-less; frame 7 leaves the interval and revises 6 and 5.
+    script = [(False, 0)] * 2 + [(True, 0)] * 5 + [(False, 2)] + [(False, 0)] * 2
+    front, classifier = _front(points_video, script, hindsight=3)
+    seen: list[tuple[int, bool, int]] = []
+    for observation in front:
+        # When a frame reaches the tracking, the classifier has gone at most 3 frames further.
+        seen.append((observation.t, observation.infoless, classifier.classified[-1]))
+        assert classifier.classified[-1] - observation.t <= 3
+    assert [t for t, _, _ in seen] == list(range(10))
+    assert [t for t, infoless, _ in seen if infoless] == [2, 3, 4]
+    # Frames 5 and 6 waited for frame 7's decision; frames 2..4 left the queue as it filled.
+    assert [(t, last) for t, _, last in seen if 2 <= t <= 7] == [
+        (2, 5),
+        (3, 6),
+        (4, 7),
+        (5, 7),
+        (6, 7),
+        (7, 7),
+    ]
+
+
+def test_hindsight_may_undo_a_short_interval_whole_and_never_reaches_further(points_video) -> None:
+    script = [(False, 0), (True, 0), (True, 0), (False, 5), (True, 0), (False, 0)]
+    front, _ = _front(points_video, script, hindsight=4)
+    assert [o.infoless for o in front] == [False, False, False, False, True, False]
+    # Without hindsight the front ignores what a decision says about earlier frames.
+    front, _ = _front(points_video, script, hindsight=0)
+    assert [o.infoless for o in front] == [False, True, True, False, True, False]
