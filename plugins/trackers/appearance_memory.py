@@ -68,6 +68,12 @@ class AppearanceSettings(FiniteModel):
         " its look distance is at most this times the next nearest detection's; None: the"
         " nearest within gap_max_distance",
     )
+    gap_rematch_inactive: bool = Field(
+        False,
+        description="at b, the lost and out-of-view targets join the re-match by look of the"
+        " refused ones (same limit and ratio test): after a look-away their old place means"
+        " nothing, their look still does",
+    )
     anywhere_max_distance: float | None = Field(
         None,
         gt=0.0,

@@ -366,7 +366,12 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         mismatch = self.life.size_mismatch(np.arange(len(matched)), sides)
         matched[np.diagonal(mismatch)] = NO_MATCH
         detection_rows[matched == NO_MATCH] = NO_MATCH
-        unlike = self._check_looks_at_b(active, matched, detection_rows, positions, detections)
+        inactive = self.life.inactive()
+        if not self.params.appearance.gap_rematch_inactive:
+            inactive = inactive[:0]
+        unlike, returned = self._check_looks_at_b(
+            active, matched, detection_rows, positions, detections, inactive
+        )
         sides = self._matched_sides(detection_rows, detections)
         if self.params.reinit_at_b:
             # The old velocity belongs to the pre-interval camera pose
@@ -375,6 +380,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         else:
             self.bank.predict()
             self.bank.means[active, :2] = positions[active]
+        self._restart(returned, positions[returned])
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
         self.matched[active] = matched[active]
         placed = np.setdiff1d(active[matched[active] == NO_MATCH], unlike)
@@ -385,7 +391,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         # A match that looks like someone else is no evidence of where the target is: it is
         # lost, and only re-acquisition (with the appearance check) brings it back.
         self.life.set(unlike, LOST, t)
-        supported = active[matched[active] != NO_MATCH]
+        self.matched[returned] = matched[returned]
+        supported = np.concatenate([active[matched[active] != NO_MATCH], returned])
         self.life.supported(t, supported, positions[supported], sides[supported])
 
     def _check_looks_at_b(
@@ -395,43 +402,55 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         detection_rows: IntArray,
         positions: FloatArray,
         detections: Detections | None,
-    ) -> IntArray:
+        inactive: IntArray,
+    ) -> tuple[IntArray, IntArray]:
         """Refuse the matches at b that look like someone else; re-match those targets by look.
 
         A match farther than ``appearance.gap_max_distance`` from the target's descriptor is
-        refused. The refused targets then take, by Hungarian on appearance distance (same
-        limit, sizes checked), the detections no kept match holds: when the window match
-        swapped two targets, each finds its own head again. ``matched``, ``detection_rows``
-        and ``positions`` are updated in place.
+        refused. The refused targets, and the ``inactive`` ones (lost and out-of-view targets
+        with ``appearance.gap_rematch_inactive``), then take, by Hungarian on appearance
+        distance (same limit, ratio test, sizes checked), the detections no kept match holds:
+        when the window match swapped two targets, each finds its own head again.
+        ``matched``, ``detection_rows`` and ``positions`` are updated in place.
 
         Returns:
-            The targets left without a match (to be lost).
+            The refused targets left without a match (to be lost), and the inactive targets
+            that found a detection.
         """
+        none = np.zeros(0, dtype=np.int64)
         limit = self.params.appearance.gap_max_distance
         if limit is None or detections is None or len(detections) == 0:
-            return np.zeros(0, dtype=np.int64)
+            return none, none
         checked = active[detection_rows[active] >= 0]
         look = self.memory.looks(self.image, checked, detections, detection_rows[checked])
         unlike = checked[np.diagonal(look) > limit]  # NaN (nothing known) refuses nothing
-        if len(unlike) == 0:
-            return unlike
+        if len(unlike) + len(inactive) == 0:
+            return none, none
         detection_rows[unlike] = NO_MATCH
         matched[unlike] = NO_MATCH
         free = np.setdiff1d(np.arange(len(detections)), detection_rows[detection_rows >= 0])
+        candidates = np.concatenate([unlike, inactive])
         # Every detection is described: the ratio test compares with the taken ones too.
-        look = self.memory.looks(self.image, unlike, detections, np.arange(len(detections)))
+        look = self.memory.looks(self.image, candidates, detections, np.arange(len(detections)))
         ratio = self.params.appearance.gap_rematch_ratio
         if ratio is not None:
             look = np.where(nearer_by_ratio(look, ratio), look, np.inf)
         cost = look[:, free]
-        cost[np.isnan(cost) | self.life.size_mismatch(unlike, box_sides(detections)[free])] = np.inf
+        sides = box_sides(detections)[free]
+        cost[np.isnan(cost) | self.life.size_mismatch(candidates, sides)] = np.inf
+        strict = self.params.appearance.anywhere_max_distance
+        if strict is not None:
+            # A target lost before the interval has no match to be refused from: it is found
+            # by look alone, as the search anywhere finds it, and under that search's limit.
+            cost[len(unlike) :][cost[len(unlike) :] > strict] = np.inf
         columns = hungarian(cost, limit)
         hit = columns >= 0
-        found, rows = unlike[hit], free[columns[hit]]
+        found, rows = candidates[hit], free[columns[hit]]
         detection_rows[found] = rows
         matched[found] = detections.index[rows]
         positions[found] = detections.points[rows]
-        return unlike[~hit]
+        refused = np.isin(candidates, unlike)
+        return candidates[refused & ~hit], candidates[~refused & hit]
 
     @staticmethod
     def _detection_rows(matched: IntArray, detections: Detections | None) -> IntArray:

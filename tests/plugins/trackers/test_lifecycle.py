@@ -514,3 +514,61 @@ def test_search_anywhere_with_a_target_never_described() -> None:
     tracker.step(30, _seen(np.vstack([GROUP[1:2], red, cyan])))
     assert tracker.statuses()[:2] == ["tracked", "tracked"]
     assert np.allclose(tracker.positions()[0], red, atol=1.0)
+
+
+def _lost_red_before_a(rematch_inactive: bool) -> Any:
+    """Red, green and blue seen with the patch descriptor; red then lost before an interval."""
+    appearance = {
+        "descriptor": "patch",
+        "max_distance": 0.3,
+        "gap_max_distance": 0.3,
+        "gap_rematch_inactive": rematch_inactive,
+    }
+    tracker = load_registry().build_stage(
+        "tracker",
+        {
+            "type": "kalman",
+            "params": {"appearance": appearance, "lifecycle": {"lost_after_s": 0.2}},
+        },
+    )
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([1, 2, 3]), GROUP)
+    tracker.see(_painted([(x, y, c) for (x, y), c in zip(GROUP, (RED, GREEN, BLUE), strict=True)]))
+    tracker.step(1, _seen(GROUP))
+    for t in range(2, 12):
+        tracker.see(_painted([(*GROUP[1], GREEN), (*GROUP[2], BLUE)]))
+        tracker.step(t, _seen(GROUP[1:]))
+    assert tracker.statuses() == ["lost", "tracked", "tracked"]
+    return tracker
+
+
+@pytest.mark.parametrize("rematch_inactive", [False, True])
+def test_a_target_lost_before_the_interval_is_found_at_b_by_look(rematch_inactive: bool) -> None:
+    # After the look-away the group stands 200 px lower and red is back in it, with a cyan
+    # bystander beside. Red took no part in the gap match (it was lost); only with
+    # gap_rematch_inactive does it take its own head at b, and never the bystander's.
+    tracker = _lost_red_before_a(rematch_inactive)
+    at_b = GROUP + np.array([0.0, 200.0])
+    cyan = np.array([700.0, 500.0])
+    tracker.see(
+        _painted([(*at_b[0], RED), (*at_b[1], GREEN), (*at_b[2], BLUE), (*cyan, (255, 255, 0))])
+    )
+    positions = np.vstack([tracker.positions()[0], at_b[1:]])
+    tracker.reinitialise(40, positions, np.array([-1, 1, 2]), _seen(np.vstack([at_b, cyan])))
+    if rematch_inactive:
+        assert tracker.statuses() == ["tracked"] * 3
+        assert tracker.states()[0].matched_detection == 0
+        assert np.allclose(tracker.positions()[0], at_b[0])
+    else:
+        assert tracker.statuses() == ["lost", "tracked", "tracked"]
+
+
+def test_a_target_lost_before_the_interval_stays_lost_between_two_heads_that_look_alike() -> None:
+    tracker = _lost_red_before_a(True)
+    at_b = GROUP + np.array([0.0, 200.0])
+    reds = np.array([[900.0, 500.0], [1100.0, 550.0]])
+    tracker.see(_painted([(*at_b[1], GREEN), (*at_b[2], BLUE), *((x, y, RED) for x, y in reds)]))
+    positions = np.vstack([tracker.positions()[0], at_b[1:]])
+    detections = _seen(np.vstack([at_b[1:], reds]))
+    tracker.reinitialise(40, positions, np.array([-1, 0, 1]), detections)
+    assert tracker.statuses() == ["lost", "tracked", "tracked"]
