@@ -12,6 +12,7 @@ that long, so that the tracking only ever sees final decisions, in frame order.
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -131,10 +132,10 @@ class FrameFront:
             if self.replay is not None and status == "ok":
                 status = self.replay.status_of(t)
             if status != "ok":
-                observation, revises = (
-                    Observation(FrameRecord(t, status), image, done_at=time.perf_counter()),
-                    0,
+                observation = Observation(
+                    FrameRecord(t, status), image, done_at=time.perf_counter()
                 )
+                revises = 0
             else:
                 observation, revises = self._observe(t, image, first)
                 first = False
@@ -143,7 +144,7 @@ class FrameFront:
                 if len(held) > window:
                     yield _released(held.popleft())
                 continue
-            for revised in list(held)[len(held) - min(revises, len(held)) :]:
+            for revised in itertools.islice(reversed(held), revises):
                 revised.record.infoless = False
             while held:
                 yield _released(held.popleft())

@@ -366,9 +366,11 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         mismatch = self.life.size_mismatch(np.arange(len(matched)), sides)
         matched[np.diagonal(mismatch)] = NO_MATCH
         detection_rows[matched == NO_MATCH] = NO_MATCH
-        inactive = self.life.inactive()
-        if not self.params.appearance.gap_rematch_inactive:
-            inactive = inactive[:0]
+        inactive = (
+            self.life.inactive()
+            if self.params.appearance.gap_rematch_inactive
+            else np.zeros(0, dtype=np.int64)
+        )
         unlike, returned = self._check_looks_at_b(
             active, matched, detection_rows, positions, detections, inactive
         )
@@ -439,18 +441,18 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         sides = box_sides(detections)[free]
         cost[np.isnan(cost) | self.life.size_mismatch(candidates, sides)] = np.inf
         strict = self.params.appearance.anywhere_max_distance
+        lost_rows = cost[len(unlike) :]  # a view: the inactive targets' rows
         if strict is not None:
             # A target lost before the interval has no match to be refused from: it is found
             # by look alone, as the search anywhere finds it, and under that search's limit.
-            cost[len(unlike) :][cost[len(unlike) :] > strict] = np.inf
+            lost_rows[lost_rows > strict] = np.inf
         columns = hungarian(cost, limit)
         hit = columns >= 0
         found, rows = candidates[hit], free[columns[hit]]
         detection_rows[found] = rows
         matched[found] = detections.index[rows]
         positions[found] = detections.points[rows]
-        refused = np.isin(candidates, unlike)
-        return candidates[refused & ~hit], candidates[~refused & hit]
+        return unlike[~hit[: len(unlike)]], inactive[hit[len(unlike) :]]
 
     @staticmethod
     def _detection_rows(matched: IntArray, detections: Detections | None) -> IntArray:

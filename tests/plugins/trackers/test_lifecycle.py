@@ -445,32 +445,38 @@ def test_no_reentry_through_the_border_without_a_look() -> None:
     assert tracker.statuses()[0] == "out-of-view"
 
 
-def _searching_anywhere(anywhere: float | None) -> Any:
-    """A tracker with the patch descriptor and the search anywhere at ``anywhere``, lost at 0.2 s."""
-    appearance = {"descriptor": "patch", "max_distance": 0.3, "anywhere_max_distance": anywhere}
-    tracker = load_registry().build_stage(
-        "tracker",
-        {
-            "type": "kalman",
-            "params": {"appearance": appearance, "lifecycle": {"lost_after_s": 0.2}},
-        },
-    )
+def _patch_tracker(**appearance: Any) -> Any:
+    """A tracker with the patch descriptor (limit 0.3) and ``appearance`` settings, lost at 0.2 s."""
+    params = {
+        "appearance": {"descriptor": "patch", "max_distance": 0.3, **appearance},
+        "lifecycle": {"lost_after_s": 0.2},
+    }
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
     tracker.start(VIDEO)
     tracker.initialise(0, np.array([1, 2, 3]), GROUP)
     return tracker
 
 
-def _lost_red(anywhere: float | None) -> Any:
-    """Red, green and blue targets seen with the patch descriptor; red then gone for 1 s."""
-    tracker = _searching_anywhere(anywhere)
+def _searching_anywhere(anywhere: float | None) -> Any:
+    """A tracker with the patch descriptor and the search anywhere at ``anywhere``, lost at 0.2 s."""
+    return _patch_tracker(anywhere_max_distance=anywhere)
+
+
+def _lose_red(tracker: Any, frames: int) -> Any:
+    """Red, green and blue seen on frame 1; red then gone for ``frames`` frames (and lost)."""
     colours = (RED, GREEN, BLUE)
     tracker.see(_painted([(x, y, c) for (x, y), c in zip(GROUP, colours, strict=True)]))
     tracker.step(1, _seen(GROUP))
-    for t in range(2, 27):
+    for t in range(2, 2 + frames):
         tracker.see(_painted([(*GROUP[1], GREEN), (*GROUP[2], BLUE)]))
         tracker.step(t, _seen(GROUP[1:]))
     assert tracker.statuses() == ["lost", "tracked", "tracked"]
     return tracker
+
+
+def _lost_red(anywhere: float | None) -> Any:
+    """Red, green and blue targets seen with the patch descriptor; red then gone for 1 s."""
+    return _lose_red(_searching_anywhere(anywhere), 25)
 
 
 @pytest.mark.parametrize("anywhere", [None, 0.3])
@@ -518,28 +524,8 @@ def test_search_anywhere_with_a_target_never_described() -> None:
 
 def _lost_red_before_a(rematch_inactive: bool) -> Any:
     """Red, green and blue seen with the patch descriptor; red then lost before an interval."""
-    appearance = {
-        "descriptor": "patch",
-        "max_distance": 0.3,
-        "gap_max_distance": 0.3,
-        "gap_rematch_inactive": rematch_inactive,
-    }
-    tracker = load_registry().build_stage(
-        "tracker",
-        {
-            "type": "kalman",
-            "params": {"appearance": appearance, "lifecycle": {"lost_after_s": 0.2}},
-        },
-    )
-    tracker.start(VIDEO)
-    tracker.initialise(0, np.array([1, 2, 3]), GROUP)
-    tracker.see(_painted([(x, y, c) for (x, y), c in zip(GROUP, (RED, GREEN, BLUE), strict=True)]))
-    tracker.step(1, _seen(GROUP))
-    for t in range(2, 12):
-        tracker.see(_painted([(*GROUP[1], GREEN), (*GROUP[2], BLUE)]))
-        tracker.step(t, _seen(GROUP[1:]))
-    assert tracker.statuses() == ["lost", "tracked", "tracked"]
-    return tracker
+    tracker = _patch_tracker(gap_max_distance=0.3, gap_rematch_inactive=rematch_inactive)
+    return _lose_red(tracker, 10)
 
 
 @pytest.mark.parametrize("rematch_inactive", [False, True])
