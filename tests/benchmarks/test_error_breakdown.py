@@ -1,0 +1,77 @@
+"""benchmarks/error_breakdown.py: each target on each frame falls into the kind it is."""
+
+from __future__ import annotations
+
+import doctest
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+
+from trackfw.formats.annotations import write_annotations
+from trackfw.formats.run import FRAMES_FILE, TRACKS_FILE, frames_header
+from trackfw.records import Interval
+
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "error_breakdown.py"
+
+
+def _script() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("error_breakdown", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["error_breakdown"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def _video(root: Path) -> tuple[Path, Path]:
+    """Two targets (1 at x=100, 2 at x=300) and a bystander at x=500, frames 0-5; an interval
+    a=2, b=4 (frame 3 info-less). Target 2 leaves after frame 4."""
+    video, run = root / "dataset" / "v", root / "runs" / "v"
+    video.mkdir(parents=True)
+    run.mkdir(parents=True)
+    truth = {t: {1: (100.0, 50.0), 2: (300.0, 50.0)} for t in (0, 1, 2, 4)}
+    truth[5] = {1: (100.0, 50.0)}
+    heads = [(t, k, x, y, 20.0) for t, points in truth.items() for k, (x, y) in points.items()]
+    heads += [(t, 9, 500.0, 50.0, 20.0) for t in (0, 1, 2, 4, 5)]
+    write_annotations(video, truth, heads, [Interval(a=2, b=4)])
+    reported = {
+        0: {1: (101.0, 50.0), 2: (301.0, 50.0)},  # both right
+        1: {1: (101.0, 50.0)},  # 2 missed, detected
+        2: {1: (300.0, 50.0)},  # 1 far on target 2's head; 2 missed, not detected
+        4: {1: (500.0, 50.0), 2: (300.0, 50.0)},  # 1 far on the bystander; 2 right (after b)
+        5: {1: (100.0, 50.0), 2: (100.0, 52.0)},  # 2 not in view, on target 1's head
+    }
+    lines = [
+        f"{t + 1},{k},{x - 10:.2f},{y - 10:.2f},20.00,20.00,1,-1,-1,-1"
+        for t, points in reported.items()
+        for k, (x, y) in points.items()
+    ]
+    (run / TRACKS_FILE).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    detections = {0: "100 50;300 50", 1: "100 50;310 50", 2: "", 3: "", 4: "500 50", 5: ""}
+    rows = [",".join(frames_header())]
+    for t, points in detections.items():
+        count = len(points.split(";")) if points else 0
+        rows.append(f"{t + 1},ok,0.1,{int(t == 3)},{count},{points},,2,0,0,0,1,1,1,")
+    (run / FRAMES_FILE).write_text("\n".join(rows) + "\n", encoding="utf-8")
+    return video, run
+
+
+def test_each_target_frame_is_counted_as_its_kind(tmp_path: Path) -> None:
+    script = _script()
+    video, run = _video(tmp_path)
+    counts = script.video_breakdown(video, run, dist=40.0, near=22.0, after=2)
+    assert dict(counts) == {
+        ("right", "segment"): 3,  # frame 0 both targets, frame 1 target 1
+        ("missed, detected", "segment"): 1,  # frame 1: a detection 10 px from target 2
+        ("far, on a target", "segment"): 1,  # frame 2: target 1 reported on 2's head
+        ("missed, not detected", "segment"): 1,  # frame 2: target 2, nothing detected
+        ("far, on a bystander", "after b"): 1,  # frame 4: target 1 on the bystander
+        ("right", "after b"): 2,  # frame 4 target 2, frame 5 target 1
+        ("not in view, on a target", "after b"): 1,  # frame 5: target 2 left, on 1's head
+    }
+
+
+def test_the_small_maths_examples_hold() -> None:
+    result = doctest.testmod(_script())
+    assert result.attempted > 0 and result.failed == 0
