@@ -245,7 +245,12 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         sides = box_sides(detections)
         life.supported(t, targets, self.bank.positions[targets], sides[rows[hit]])
         self.memory.remember(t, self.image, targets, detections, rows[hit])
-        life.unsupported(t, active[~hit], self.bank.positions[active[~hit]])
+        missing = active[~hit]
+        predicted = self.bank.positions[missing]
+        hidden = life.hidden_behind(
+            missing, predicted, detections.points[rows[hit]], sides[rows[hit]]
+        )
+        life.unsupported(t, missing, predicted, hidden)
         found, columns = self._reacquire(t, detections, inactive, targets, rows[hit])
         life.supported(t, found, self.bank.positions[found], sides[columns])
 

@@ -40,6 +40,38 @@ def test_tracked_then_lost_after_the_set_time_and_not_before() -> None:
     assert tracker.states()[1].status == "lost"
 
 
+# Target 2 stands 25 px (under one 30-px head) behind target 1; target 3 is far from both.
+CROSSING = np.array([[400.0, 300.0], [425.0, 300.0], [700.0, 300.0]])
+
+
+def _crossing(**lifecycle: Any) -> Any:
+    params = {"lifecycle": lifecycle}
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([1, 2, 3]), CROSSING)
+    return tracker
+
+
+@pytest.mark.parametrize("hold", [None, 0.5])
+def test_a_target_hidden_behind_another_stays_tracked_for_the_hold(hold: float | None) -> None:
+    tracker = _crossing(lost_after_s=0.2, hidden_hold_s=hold)
+    last_tracked = 0
+    for t in range(1, 20):  # one detection for targets 1 and 2 (target 1 takes it); 3 unseen
+        tracker.step(t, _seen(CROSSING[[0]]))
+        if tracker.statuses()[1] == "tracked":
+            last_tracked = t
+        assert tracker.statuses()[0] == "tracked"
+    # 0.2 s = 5 frames at 25 fps; 0.5 s = 12.5 frames
+    assert last_tracked == (5 if hold is None else 12)
+
+
+def test_a_missing_target_far_from_every_detection_is_lost_as_before() -> None:
+    tracker = _crossing(lost_after_s=0.2, hidden_hold_s=0.5)
+    for t in range(1, 7):
+        tracker.step(t, _seen(CROSSING[[0, 1]]))
+    assert tracker.statuses() == ["tracked", "tracked", "lost"]
+
+
 @pytest.mark.parametrize("start_gate", [None, 100.0])
 def test_a_start_position_off_the_detectors_head_is_taken_with_the_start_gate(
     start_gate: float | None,
