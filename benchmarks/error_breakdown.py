@@ -9,8 +9,9 @@ the video (ground-truth point or reported point present), one kind:
   head (the detector found it, the tracker did not report it);
 - ``missed, not detected``: not reported, no detection that near;
 - ``far, on a target`` / ``far, on a bystander`` / ``far, elsewhere``: reported more than
-  ``--dist`` from its head, and the reported point lies on another target's head, on a head of
-  heads.csv that no target has, or on none;
+  ``--dist`` from its head, and the reported point lies within ``--dist`` of another target's
+  point, on a bystander's head (the rule of the report's "captured by a non-target":
+  :mod:`trackfw_plugins.evaluation.capture`), or on neither;
 - ``not in view, on a target`` / ``..., on a bystander`` / ``..., elsewhere``: reported on a frame
   where gt.csv has no point for it (it left, or the frame is info-less).
 
@@ -29,10 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
-from trackfw.arrays import FloatArray
-from trackfw.formats.annotations import read_heads, read_intervals, read_targets
+from trackfw.arrays import FloatArray, IntArray
+from trackfw.dataset import list_videos, load_video
+from trackfw.errors import UserError
 from trackfw.formats.run import read_run
-from trackfw.records import Interval
+from trackfw.records import Interval, VideoContext
+from trackfw_plugins.evaluation.capture import bystander_heads, on_heads
 
 KINDS = (
     "right",
@@ -65,43 +68,55 @@ def phase_of(frame: int, intervals: list[Interval], after: int) -> str:
     return "segment"
 
 
-def place_of(point: FloatArray, others: FloatArray, heads: FloatArray, dist: float) -> str:
-    """What a reported ``(2,)`` point lies on: another target's head (``(M, 2)`` ``others``), a
-    bystander's (a head of ``(N, 2)`` ``heads`` no target has), or neither.
+def place_of(point: FloatArray, others: FloatArray, bystanders: FloatArray, dist: float) -> str:
+    """What a reported ``(2,)`` point lies on: within ``dist`` of another target's point (``(M,
+    2)`` ``others``), on a bystander's head (``(N, 3)`` ``bystanders``), or neither.
 
     >>> import numpy as np
-    >>> heads = np.array([[0.0, 0.0], [100.0, 0.0]])
-    >>> place_of(np.array([98.0, 1.0]), np.array([[0.0, 0.0]]), heads, 10.0)
+    >>> bystanders = np.array([[100.0, 0.0, 20.0]])
+    >>> place_of(np.array([98.0, 1.0]), np.array([[0.0, 0.0]]), bystanders, 10.0)
     'on a bystander'
-    >>> place_of(np.array([2.0, 1.0]), np.array([[0.0, 0.0]]), heads, 10.0)
+    >>> place_of(np.array([2.0, 1.0]), np.array([[0.0, 0.0]]), bystanders, 10.0)
     'on a target'
     """
     if len(others) and np.hypot(*(others - point).T).min() <= dist:
         return "on a target"
-    if len(heads) and np.hypot(*(heads - point).T).min() <= dist:
+    if on_heads(point[None, :], bystanders)[0]:
         return "on a bystander"
     return "elsewhere"
 
 
 def video_breakdown(
-    dataset_video: Path, run_video: Path, dist: float, near: float, after: int
+    video: VideoContext, run_video: Path, dist: float, near: float, after: int
 ) -> Counter[tuple[str, str]]:
     """Counts of ``(kind, phase)`` over one video's targets and frames."""
-    targets = read_targets(dataset_video / "gt.csv")
-    heads = (
-        read_heads(dataset_video / "heads.csv") if (dataset_video / "heads.csv").is_file() else {}
-    )
-    intervals = read_intervals(dataset_video / "intervals.csv")
-    run = read_run(run_video)
+    truth = video.ground_truth
+    if truth is None or not truth.targets:
+        raise UserError(
+            f"{video.path}: no ground truth; expected gt.csv with the people of interest."
+        )
+    run = read_run(run_video, video.n_frames)
     detections = dict(zip(run.frames.frames.tolist(), run.frames.detections, strict=True))
-    ids = sorted({target for frame in targets.values() for target in frame})
+    ids = sorted({target for frame in truth.targets.values() for target in frame})
     counts: Counter[tuple[str, str]] = Counter()
-    for frame in sorted(set(targets) | set(run.tracks)):
-        truth, reported = targets.get(frame, {}), run.tracks.get(frame, {})
-        phase = phase_of(frame, intervals, after)
-        all_heads = heads.get(frame, np.zeros((0, 3)))[:, :2]
+    for frame in sorted(set(truth.targets) | set(run.tracks)):
+        points = truth.targets.get(frame, {})
+        truth_ids = np.array(list(points), dtype=np.int64)
+        truth_points = np.array(list(points.values()), dtype=np.float64).reshape(-1, 2)
+        bystanders = bystander_heads(truth.heads.get(frame, np.zeros((0, 3))), truth_points)
+        phase = phase_of(frame, truth.intervals, after)
+        reported = run.tracks.get(frame, {})
         for target in ids:
-            kind = _kind(target, truth, reported, all_heads, detections.get(frame), dist, near)
+            point = reported.get(target)
+            kind = _kind(
+                target,
+                truth_ids,
+                truth_points,
+                None if point is None else np.asarray(point[:2], dtype=np.float64),
+                bystanders,
+                detections.get(frame),
+                (dist, near),
+            )
             if kind is not None:
                 counts[kind, phase] += 1
     return counts
@@ -109,30 +124,37 @@ def video_breakdown(
 
 def _kind(
     target: int,
-    truth: dict[int, tuple[float, float]],
-    reported: dict[int, tuple[float, ...]],
-    heads: FloatArray,
+    truth_ids: IntArray,
+    truth_points: FloatArray,
+    point: FloatArray | None,
+    bystanders: FloatArray,
     detections: FloatArray | None,
-    dist: float,
-    near: float,
+    limits: tuple[float, float],
 ) -> str | None:
-    """The kind of one target on one frame (None: neither in the ground truth nor reported)."""
-    own = truth.get(target)
-    point = reported.get(target)
+    """The kind of one target on one frame (None: neither in the ground truth nor reported).
+
+    ``truth_ids`` and ``(N, 2)`` ``truth_points`` are the frame's ground truth, ``point`` the
+    target's reported ``(2,)`` point, ``limits`` the ``(dist, near)`` distances.
+    """
+    dist, near = limits
+    mine = truth_ids == target
+    own = truth_points[mine][0] if mine.any() else None
     if own is None and point is None:
         return None
-    others = np.array([p for t, p in truth.items() if t != target], dtype=np.float64).reshape(-1, 2)
     if point is None:
-        found = detections is not None and len(detections) > 0
-        if found and np.hypot(*(np.asarray(detections) - own).T).min() <= near:
+        if (
+            detections is not None
+            and len(detections)
+            and np.hypot(*(detections - own).T).min() <= near
+        ):
             return "missed, detected"
         return "missed, not detected"
-    where = np.asarray(point[:2], dtype=np.float64)
+    others = truth_points[~mine]
     if own is None:
-        return "not in view, " + place_of(where, others, heads, dist)
-    if np.hypot(*(where - own)) <= dist:
+        return "not in view, " + place_of(point, others, bystanders, dist)
+    if np.hypot(*(point - own)) <= dist:
         return "right"
-    return "far, " + place_of(where, others, heads, dist)
+    return "far, " + place_of(point, others, bystanders, dist)
 
 
 def main() -> None:
@@ -148,11 +170,9 @@ def main() -> None:
     parser.add_argument("--after", type=int, default=10, help="frames from b counted as 'after b'")
     args = parser.parse_args()
     counts: Counter[tuple[str, str]] = Counter()
-    videos = sorted(path for path in args.runs.iterdir() if (path / "tracks.txt").is_file())
-    for run_video in videos:
-        counts += video_breakdown(
-            args.dataset / run_video.name, run_video, args.dist, args.near, args.after
-        )
+    videos = [load_video(path) for path in list_videos(args.dataset)]
+    for video in videos:
+        counts += video_breakdown(video, args.runs / video.name, args.dist, args.near, args.after)
     truth = sum(
         counts[kind, phase]
         for kind in KINDS

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trackfw.arrays import FloatArray
+from trackfw.arrays import BoolArray, FloatArray
 from trackfw_plugins.evaluation.clear_mot import FrameObservations
 from trackfw_plugins.maths.confusion import PooledCounts, ratio
 from trackfw_plugins.maths.head_matching import MATCH_RATIO
@@ -41,6 +41,37 @@ class CaptureCounts(PooledCounts):
     def share(self) -> float:
         """Captured / reported; NaN when nothing was reported."""
         return ratio(self.captured, self.reported)
+
+
+def bystander_heads(
+    heads: FloatArray, targets: FloatArray, match_ratio: float = MATCH_RATIO
+) -> FloatArray:
+    """The ``(B, 3)`` rows of ``(M, 3)`` ``heads`` that are no target's head: no ground-truth
+    target point of ``(N, 2)`` ``targets`` lies within ``match_ratio`` of the head's size.
+
+    >>> import numpy as np
+    >>> heads = np.array([[0.0, 0.0, 40.0], [200.0, 0.0, 40.0]])
+    >>> bystander_heads(heads, np.array([[5.0, 0.0]])).tolist()
+    [[200.0, 0.0, 40.0]]
+    """
+    if len(targets) == 0 or len(heads) == 0:
+        return heads
+    to_targets = np.linalg.norm(heads[None, :, :2] - targets[:, None, :], axis=2)
+    return heads[~(to_targets <= match_ratio * heads[None, :, 2]).any(axis=0)]
+
+
+def on_heads(points: FloatArray, heads: FloatArray, match_ratio: float = MATCH_RATIO) -> BoolArray:
+    """``(K,)``: whether each of ``(K, 2)`` ``points`` lies on one of ``(M, 3)`` ``heads``
+    (within ``match_ratio`` of that head's size of its centre).
+
+    >>> import numpy as np
+    >>> on_heads(np.array([[198.0, 3.0], [400.0, 0.0]]), np.array([[200.0, 0.0, 40.0]])).tolist()
+    [True, False]
+    """
+    if len(points) == 0 or len(heads) == 0:
+        return np.zeros(len(points), dtype=bool)
+    distance = np.linalg.norm(points[:, None, :] - heads[None, :, :2], axis=2)
+    return np.asarray((distance <= match_ratio * heads[None, :, 2]).any(axis=1), dtype=bool)
 
 
 def frame_captured(
@@ -69,17 +100,12 @@ def frame_captured(
     """
     if len(reported) == 0 or len(heads) == 0:
         return 0
-    bystanders = heads
+    bystanders = bystander_heads(heads, targets, match_ratio)
     if len(targets):
-        to_targets = np.linalg.norm(heads[None, :, :2] - targets[:, None, :], axis=2)
-        bystanders = heads[~(to_targets <= match_ratio * heads[None, :, 2]).any(axis=0)]
         if target_distances is None:
             target_distances = np.linalg.norm(targets[:, None, :] - reported[None, :, :], axis=2)
         reported = reported[~(target_distances <= distance_px).any(axis=0)]
-    if len(reported) == 0 or len(bystanders) == 0:
-        return 0
-    to_bystanders = np.linalg.norm(reported[:, None, :] - bystanders[None, :, :2], axis=2)
-    return int((to_bystanders <= match_ratio * bystanders[None, :, 2]).any(axis=1).sum())
+    return int(on_heads(reported, bystanders, match_ratio).sum())
 
 
 def capture_counts(

@@ -238,20 +238,18 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         active, inactive = life.active(), life.inactive()
         rows = self.associate(self.bank.positions[active], detections, active)
         hit = rows >= 0
-        targets = active[hit]
-        self.bank.correct(targets, detections.points[rows[hit]])
+        targets, taken = active[hit], rows[hit]
+        self.bank.correct(targets, detections.points[taken])
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
-        self.matched[targets] = detections.index[rows[hit]]
+        self.matched[targets] = detections.index[taken]
         sides = box_sides(detections)
-        life.supported(t, targets, self.bank.positions[targets], sides[rows[hit]])
-        self.memory.remember(t, self.image, targets, detections, rows[hit])
+        life.supported(t, targets, self.bank.positions[targets], sides[taken])
+        self.memory.remember(t, self.image, targets, detections, taken)
         missing = active[~hit]
         predicted = self.bank.positions[missing]
-        hidden = life.hidden_behind(
-            missing, predicted, detections.points[rows[hit]], sides[rows[hit]]
-        )
+        hidden = life.hidden_behind(missing, predicted, detections.points[taken], sides[taken])
         life.unsupported(t, missing, predicted, hidden)
-        found, columns = self._reacquire(t, detections, inactive, targets, rows[hit])
+        found, columns = self._reacquire(t, detections, inactive, targets, taken)
         life.supported(t, found, self.bank.positions[found], sides[columns])
 
     def _compensate(self, detections: Detections) -> None:

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+from trackfw.dataset import load_video, write_meta
 from trackfw.formats.annotations import write_annotations
 from trackfw.formats.run import FRAMES_FILE, TRACKS_FILE, frames_header
 from trackfw.records import Interval
@@ -35,6 +36,7 @@ def _video(root: Path) -> tuple[Path, Path]:
     heads = [(t, k, x, y, 20.0) for t, points in truth.items() for k, (x, y) in points.items()]
     heads += [(t, 9, 500.0, 50.0, 20.0) for t in (0, 1, 2, 4, 5)]
     write_annotations(video, truth, heads, [Interval(a=2, b=4)])
+    write_meta(video / "meta.json", {"n_frames": 6, "width": 640, "height": 480, "fps": 25})
     reported = {
         0: {1: (101.0, 50.0), 2: (301.0, 50.0)},  # both right
         1: {1: (101.0, 50.0)},  # 2 missed, detected
@@ -60,7 +62,7 @@ def _video(root: Path) -> tuple[Path, Path]:
 def test_each_target_frame_is_counted_as_its_kind(tmp_path: Path) -> None:
     script = _script()
     video, run = _video(tmp_path)
-    counts = script.video_breakdown(video, run, dist=40.0, near=22.0, after=2)
+    counts = script.video_breakdown(load_video(video), run, dist=40.0, near=22.0, after=2)
     assert dict(counts) == {
         ("right", "segment"): 3,  # frame 0 both targets, frame 1 target 1
         ("missed, detected", "segment"): 1,  # frame 1: a detection 10 px from target 2

@@ -15,12 +15,16 @@ VIDEO = VideoContext(name="v", path="v", n_frames=500, width=1280, height=720, f
 GROUP = np.array([[400.0, 300.0], [460.0, 310.0], [520.0, 300.0]])
 
 
-def _tracker(**lifecycle: Any) -> Any:
+def _tracker_at(positions: np.ndarray, **lifecycle: Any) -> Any:
     params = {"lifecycle": lifecycle} if lifecycle else {}
     tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
     tracker.start(VIDEO)
-    tracker.initialise(0, np.array([1, 2, 3]), GROUP)
+    tracker.initialise(0, np.arange(1, len(positions) + 1), positions)
     return tracker
+
+
+def _tracker(**lifecycle: Any) -> Any:
+    return _tracker_at(GROUP, **lifecycle)
 
 
 def _seen(points: np.ndarray, sizes: list[float] | None = None) -> Detections:
@@ -44,17 +48,9 @@ def test_tracked_then_lost_after_the_set_time_and_not_before() -> None:
 CROSSING = np.array([[400.0, 300.0], [425.0, 300.0], [700.0, 300.0]])
 
 
-def _crossing(**lifecycle: Any) -> Any:
-    params = {"lifecycle": lifecycle}
-    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
-    tracker.start(VIDEO)
-    tracker.initialise(0, np.array([1, 2, 3]), CROSSING)
-    return tracker
-
-
 @pytest.mark.parametrize("hold", [None, 0.5])
 def test_a_target_hidden_behind_another_stays_tracked_for_the_hold(hold: float | None) -> None:
-    tracker = _crossing(lost_after_s=0.2, hidden_hold_s=hold)
+    tracker = _tracker_at(CROSSING, lost_after_s=0.2, hidden_hold_s=hold)
     last_tracked = 0
     for t in range(1, 20):  # one detection for targets 1 and 2 (target 1 takes it); 3 unseen
         tracker.step(t, _seen(CROSSING[[0]]))
@@ -66,7 +62,7 @@ def test_a_target_hidden_behind_another_stays_tracked_for_the_hold(hold: float |
 
 
 def test_a_missing_target_far_from_every_detection_is_lost_as_before() -> None:
-    tracker = _crossing(lost_after_s=0.2, hidden_hold_s=0.5)
+    tracker = _tracker_at(CROSSING, lost_after_s=0.2, hidden_hold_s=0.5)
     for t in range(1, 7):
         tracker.step(t, _seen(CROSSING[[0, 1]]))
     assert tracker.statuses() == ["tracked", "tracked", "lost"]
