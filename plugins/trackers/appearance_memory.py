@@ -89,6 +89,24 @@ class AppearanceSettings(FiniteModel):
     refresh_s: float = Field(
         1.0, gt=0.0, description="seconds between two descriptors of a tracked target"
     )
+    refresh_cover_max: float | None = Field(
+        None,
+        gt=0.0,
+        le=1.0,
+        description="a due refresh waits while more than this fraction of the target's body box"
+        " is covered by the body box of a detection with a head at least as large (nearer the"
+        " camera); a target's first descriptor never waits; None: refresh whatever covers it",
+    )
+    swap_max_distance: float | None = Field(
+        None,
+        gt=0.0,
+        description="a tracked target whose refreshed crop lies farther than this from every"
+        " remembered descriptor, and again on a second crop swap_recheck_s later, has been"
+        " taken over by someone else: it is lost (its descriptors kept); None: never checked",
+    )
+    swap_recheck_s: float = Field(
+        0.2, ge=0.0, description="seconds from a crop unlike the target to the second check"
+    )
     reid_model: str = Field(
         "0287", description="person-reid: embedder '0287', '0248' or an ONNX path"
     )
@@ -101,7 +119,13 @@ def _embedder(model: str) -> PersonReidEmbedder:
 
 
 class AppearanceMemory:
-    """The last descriptor of every target, and the appearance veto of re-acquisition."""
+    """The last descriptor of every target, and the appearance veto of re-acquisition.
+
+    A refresh of a target half hidden by someone nearer the camera may wait for a clear view
+    (``refresh_cover_max``), and a refreshed crop unlike the target twice in a row says the
+    target's detection is someone else's (``swap_max_distance``). See
+    docs/algorithms/segment-tracker.md#re-acquisition.
+    """
 
     def __init__(self, settings: AppearanceSettings, count: int, height: int, fps: float) -> None:
         self.settings = settings
@@ -110,8 +134,12 @@ class AppearanceMemory:
         )
         self.fallback_size = head_size(height)
         self.refresh_frames = settings.refresh_s * fps
+        # Per target a (1, D) descriptor (None: never described).
         self.descriptors: list[FloatArray | None] = [None] * count
         self.described_at = np.full(count, -(10**9), dtype=np.int64)
+        # Frame of a first crop unlike the target, awaiting the second check (-1: none).
+        self.unlike_at = np.full(count, -1, dtype=np.int64)
+        self.recheck_frames = settings.swap_recheck_s * fps
 
     @property
     def active(self) -> bool:
@@ -133,17 +161,61 @@ class AppearanceMemory:
         targets: IntArray,
         detections: Detections,
         rows: IntArray,
-    ) -> None:
-        """Targets ``targets`` matched detections ``rows`` on frame ``t``: refresh when due."""
+    ) -> IntArray:
+        """Targets ``targets`` matched detections ``rows`` on frame ``t``: refresh when due.
+
+        Returns:
+            The targets whose crop was unlike them twice in a row (``swap_max_distance``): the
+            detection is someone else's. Their descriptors are left as they were.
+        """
+        none = np.zeros(0, dtype=np.int64)
         if not self.active or image is None or len(targets) == 0:
-            return
-        due = t - self.described_at[targets] >= self.refresh_frames
+            return none
+        suspect = self.unlike_at[targets] >= 0
+        due = np.where(
+            suspect,
+            t - self.unlike_at[targets] >= self.recheck_frames,
+            t - self.described_at[targets] >= self.refresh_frames,
+        )
+        if self.settings.refresh_cover_max is not None and due.any():
+            covered = covered_fractions(self.body_boxes(detections))
+            # The first descriptor is taken whatever covers the target: without one, nothing
+            # vetoes a bystander.
+            unknown = np.array([self.descriptors[int(k)] is None for k in targets], dtype=bool)
+            due &= (covered[rows] <= self.settings.refresh_cover_max) | unknown
         if not due.any():
-            return
+            return none
         described = self.describe(image, detections, rows[due])
-        for target, descriptor in zip(targets[due], described, strict=True):
-            self.descriptors[int(target)] = descriptor
-        self.described_at[targets[due]] = t
+        swapped = [
+            int(k) for k, d in zip(targets[due], described, strict=True) if self._add(t, k, d)
+        ]
+        return np.array(swapped, dtype=np.int64)
+
+    def _add(self, t: int, target: int, descriptor: FloatArray) -> bool:
+        """Keep target ``target``'s fresh ``(D,)`` descriptor unless it looks like someone else.
+
+        Returns whether this is the second crop in a row unlike the target (a swap).
+        """
+        old = self.descriptors[target]
+        limit = self.settings.swap_max_distance
+        fresh = descriptor[None, :]
+        if old is not None and limit is not None:
+            measure = (
+                cosine_distance_matrix if self.embedder is not None else appearance_distance_matrix
+            )
+            if measure(old, fresh).min() > limit:
+                second = bool(self.unlike_at[target] >= 0)
+                self.unlike_at[target] = -1 if second else t
+                return second
+        self.unlike_at[target] = -1
+        self.descriptors[target] = fresh
+        self.described_at[target] = t
+        return False
+
+    def body_boxes(self, detections: Detections) -> FloatArray:
+        """``(N, 4)`` body boxes of every detection (as :meth:`describe` crops them)."""
+        rows = np.arange(len(detections))
+        return body_boxes(detections.points, detections, rows, self.fallback_size)
 
     def distances(
         self, image: UInt8Array | None, targets: IntArray, detections: Detections, columns: IntArray
@@ -157,13 +229,12 @@ class AppearanceMemory:
         known = np.array([self.descriptors[int(k)] is not None for k in targets], dtype=bool)
         if not self.active or image is None or not known.any() or len(columns) == 0:
             return distance
-        gallery = self.describe(image, detections, columns)
-        query = np.stack([self.descriptors[int(k)] for k in targets[known]])  # type: ignore[misc]
-        distance[known] = (
-            cosine_distance_matrix(query, gallery)
-            if self.embedder is not None
-            else appearance_distance_matrix(query, gallery)
+        described = self.describe(image, detections, columns)
+        measure = (
+            cosine_distance_matrix if self.embedder is not None else appearance_distance_matrix
         )
+        query = np.concatenate([self.descriptors[int(k)] for k in targets[known]])
+        distance[known] = measure(query, described)
         return distance
 
     def veto(
@@ -223,4 +294,26 @@ class AppearanceMemory:
         )
 
 
-__all__ = ["AppearanceMemory", "AppearanceSettings"]
+def covered_fractions(boxes: FloatArray) -> FloatArray:
+    """``(N,)`` largest fraction of each ``(N, 4)`` ``(left, top, width, height)`` box covered by
+    one other box at least 0.9 times as tall (a person as near the camera or nearer).
+
+    >>> import numpy as np
+    >>> boxes = np.array([[0.0, 0.0, 10.0, 20.0], [5.0, 0.0, 10.0, 20.0], [0.0, 0.0, 2.0, 4.0]])
+    >>> covered_fractions(boxes).tolist()
+    [0.5, 0.5, 1.0]
+    """
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    left, top = boxes[:, 0], boxes[:, 1]
+    right, bottom = left + boxes[:, 2], top + boxes[:, 3]
+    wide = np.clip(np.minimum(right[:, None], right) - np.maximum(left[:, None], left), 0.0, None)
+    high = np.clip(np.minimum(bottom[:, None], bottom) - np.maximum(top[:, None], top), 0.0, None)
+    area = np.maximum(boxes[:, 2] * boxes[:, 3], 1e-9)
+    share = wide * high / area[:, None]
+    nearer = boxes[None, :, 3] >= 0.9 * boxes[:, None, 3]
+    np.fill_diagonal(nearer, False)
+    share[~nearer] = 0.0
+    return share.max(axis=1, initial=0.0)
+
+
+__all__ = ["AppearanceMemory", "AppearanceSettings", "covered_fractions"]

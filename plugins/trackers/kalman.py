@@ -244,7 +244,11 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.matched[targets] = detections.index[taken]
         sides = box_sides(detections)
         life.supported(t, targets, self.bank.positions[targets], sides[taken])
-        self.memory.remember(t, self.image, targets, detections, taken)
+        swapped = self.memory.remember(t, self.image, targets, detections, taken)
+        if len(swapped):
+            # Someone else's detection: the target is lost rather than following them.
+            life.set(swapped, LOST, t)
+            self.matched[swapped] = NO_MATCH
         missing = active[~hit]
         predicted = self.bank.positions[missing]
         hidden = life.hidden_behind(missing, predicted, detections.points[taken], sides[taken])

@@ -5,7 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from trackfw.records import Detections
-from trackfw_plugins.trackers.appearance_memory import AppearanceMemory, AppearanceSettings
+from trackfw_plugins.trackers.appearance_memory import (
+    AppearanceMemory,
+    AppearanceSettings,
+    covered_fractions,
+)
 
 
 def _image() -> np.ndarray:
@@ -43,3 +47,61 @@ def test_entering_pairs_need_a_descriptor_and_the_stricter_distance() -> None:
     # Inside: farther than 0.05 though within 1.2; at the border the patch says nothing, so an
     # entering pair there is refused; target 1 has no descriptor: its entering pair is refused.
     assert veto.tolist() == [[True, True], [True, False]]
+
+
+def _heads(points: list[list[float]], sides: list[float]) -> Detections:
+    xy = np.array(points, dtype=np.float64)
+    side = np.array(sides, dtype=np.float64)
+    boxes = np.column_stack([xy - side[:, None] / 2, side, side])
+    return Detections(points=xy, scores=np.ones(len(xy)), boxes=boxes)
+
+
+def test_a_refresh_waits_while_someone_nearer_covers_the_target() -> None:
+    image = _image()
+    settings = AppearanceSettings(descriptor="patch", refresh_s=0.04, refresh_cover_max=0.3)
+    memory = AppearanceMemory(settings, 1, 360, 25.0)
+    alone = _heads([[150.0, 180.0]], [12.0])
+    memory.remember(0, image, np.array([0]), alone, np.array([0]))
+    first = memory.descriptors[0]
+    assert first is not None
+    # Then a nearer person (larger head) stands right over it, in the green half: no refresh.
+    crowded = _heads([[330.0, 180.0], [335.0, 175.0]], [12.0, 20.0])
+    memory.remember(1, image, np.array([0]), crowded, np.array([0]))
+    assert memory.descriptors[0] is first
+    # Seen as the nearer of the two, it is not covered by the farther one.
+    memory.remember(2, image, np.array([0]), crowded, np.array([1]))
+    assert memory.descriptors[0] is not first
+
+
+def test_the_first_descriptor_is_taken_even_when_covered() -> None:
+    memory = AppearanceMemory(
+        AppearanceSettings(descriptor="patch", refresh_cover_max=0.3), 1, 360, 25.0
+    )
+    crowded = _heads([[150.0, 180.0], [155.0, 175.0]], [12.0, 20.0])
+    memory.remember(0, _image(), np.array([0]), crowded, np.array([0]))
+    assert memory.descriptors[0] is not None
+
+
+def test_covered_fractions_of_no_boxes_is_empty() -> None:
+    assert covered_fractions(np.zeros((0, 4))).shape == (0,)
+
+
+def test_a_crop_unlike_the_target_twice_in_a_row_is_a_swap() -> None:
+    image = _image()
+    settings = AppearanceSettings(
+        descriptor="patch", refresh_s=0.04, swap_max_distance=0.3, swap_recheck_s=0.2
+    )
+    memory = AppearanceMemory(settings, 1, 360, 25.0)
+    red, green = _heads([[150.0, 180.0]], [12.0]), _heads([[480.0, 180.0]], [12.0])
+    target, row = np.array([0]), np.array([0])
+    assert memory.remember(0, image, target, red, row).tolist() == []
+    first = memory.descriptors[0]
+    # Unlike once: not yet a swap, and the look is not taken; the second check waits 0.2 s.
+    assert memory.remember(1, image, target, green, row).tolist() == []
+    assert memory.remember(3, image, target, green, row).tolist() == []
+    assert memory.remember(6, image, target, green, row).tolist() == [0]
+    assert memory.descriptors[0] is first
+    # One unlike crop followed by a like one is no swap.
+    assert memory.remember(7, image, target, green, row).tolist() == []
+    assert memory.remember(12, image, target, red, row).tolist() == []
+    assert memory.remember(13, image, target, green, row).tolist() == []

@@ -83,3 +83,26 @@ def test_camera_motion_compensation_follows_a_pan(cmc: bool) -> None:
         tracker.step(t, Detections.from_points(people - [40.0 * t, 0.0]))
         matched = np.array([state.matched_detection for state in tracker.states()])
         assert (matched >= 0).all() == cmc, t
+
+
+def test_a_target_whose_detection_turns_into_someone_else_is_lost() -> None:
+    params = {"appearance": {"descriptor": "patch", "refresh_s": 0.04, "swap_max_distance": 0.3}}
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([1]), np.array([[300.0, 300.0]]))
+    red = np.zeros((720, 1280, 3), dtype=np.uint8)
+    red[:, :, 2] = 200
+    green = np.zeros_like(red)
+    green[:, :, 1] = np.random.default_rng(0).integers(100, 255, size=(720, 1280))
+    # A red-looking target stands still; from frame 10 a green-looking person stands there.
+    statuses = []
+    for t in range(30):
+        tracker.see(red if t < 10 else green)
+        tracker.step(t, Detections.from_points(np.array([[300.0, 300.0]])))
+        statuses.append(tracker.statuses()[0])
+    assert statuses[9] == "tracked"
+    assert "lost" in statuses[10:]
+    first_lost = statuses.index("lost")
+    # Lost at the second unlike crop (0.2 s after the first), and not re-taken: it looks unlike.
+    assert 14 <= first_lost <= 16
+    assert all(status == "lost" for status in statuses[first_lost:])
