@@ -199,14 +199,14 @@ class AppearanceMemory:
         old = self.descriptors[target]
         limit = self.settings.swap_max_distance
         fresh = descriptor[None, :]
-        if old is not None and limit is not None:
-            measure = (
-                cosine_distance_matrix if self.embedder is not None else appearance_distance_matrix
-            )
-            if measure(old, fresh).min() > limit:
-                second = bool(self.unlike_at[target] >= 0)
-                self.unlike_at[target] = -1 if second else t
-                return second
+        if (
+            old is not None
+            and limit is not None
+            and self._distance_matrix(old, fresh).min() > limit
+        ):
+            second = bool(self.unlike_at[target] >= 0)
+            self.unlike_at[target] = -1 if second else t
+            return second
         self.unlike_at[target] = -1
         self.descriptors[target] = fresh
         self.described_at[target] = t
@@ -230,12 +230,15 @@ class AppearanceMemory:
         if not self.active or image is None or not known.any() or len(columns) == 0:
             return distance
         described = self.describe(image, detections, columns)
-        measure = (
-            cosine_distance_matrix if self.embedder is not None else appearance_distance_matrix
-        )
         query = np.concatenate([self.descriptors[int(k)] for k in targets[known]])
-        distance[known] = measure(query, described)
+        distance[known] = self._distance_matrix(query, described)
         return distance
+
+    def _distance_matrix(self, first: FloatArray, second: FloatArray) -> FloatArray:
+        """``(M, N)`` distances of ``(M, D)`` to ``(N, D)`` descriptors in this descriptor's metric."""
+        if self.embedder is not None:
+            return cosine_distance_matrix(first, second)
+        return appearance_distance_matrix(first, second)
 
     def veto(
         self,
