@@ -29,7 +29,8 @@ from pydantic import Field
 
 from trackfw.arrays import FloatArray, IntArray
 from trackfw.stages import StageParams
-from trackfw_plugins.batch_trackers.tracks import Tracks, VideoDetections, box_iou
+from trackfw_plugins.batch_trackers.tracks import Tracks, VideoDetections
+from trackfw_plugins.maths.box_overlap import box_iou
 
 
 class DpnmsParams(StageParams):

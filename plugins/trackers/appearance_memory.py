@@ -24,6 +24,7 @@ from trackfw_plugins.maths.appearance import (
     appearance_descriptors,
     appearance_distance_matrix,
 )
+from trackfw_plugins.maths.box_overlap import box_intersection
 from trackfw_plugins.maths.person_reid import (
     PersonReidEmbedder,
     body_boxes,
@@ -100,9 +101,9 @@ class AppearanceSettings(FiniteModel):
     swap_max_distance: float | None = Field(
         None,
         gt=0.0,
-        description="a tracked target whose refreshed crop lies farther than this from every"
-        " remembered descriptor, and again on a second crop swap_recheck_s later, has been"
-        " taken over by someone else: it is lost (its descriptors kept); None: never checked",
+        description="a tracked target whose refreshed crop lies farther than this from its"
+        " descriptor, and again on a second crop swap_recheck_s later, has been taken over by"
+        " someone else: it is lost (its descriptor kept); None: never checked",
     )
     swap_recheck_s: float = Field(
         0.2, ge=0.0, description="seconds from a crop unlike the target to the second check"
@@ -307,12 +308,8 @@ def covered_fractions(boxes: FloatArray) -> FloatArray:
     [0.5, 0.5, 1.0]
     """
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
-    left, top = boxes[:, 0], boxes[:, 1]
-    right, bottom = left + boxes[:, 2], top + boxes[:, 3]
-    wide = np.clip(np.minimum(right[:, None], right) - np.maximum(left[:, None], left), 0.0, None)
-    high = np.clip(np.minimum(bottom[:, None], bottom) - np.maximum(top[:, None], top), 0.0, None)
     area = np.maximum(boxes[:, 2] * boxes[:, 3], 1e-9)
-    share = wide * high / area[:, None]
+    share = box_intersection(boxes, boxes) / area[:, None]
     nearer = boxes[None, :, 3] >= 0.9 * boxes[:, None, 3]
     np.fill_diagonal(nearer, False)
     share[~nearer] = 0.0
