@@ -59,6 +59,7 @@ from trackfw_plugins.detectors.training.sampling import (
 )
 from trackfw_plugins.detectors.yolox import YoloxDetector, YoloxParams
 from trackfw_plugins.maths.assignment import hungarian
+from trackfw_plugins.maths.box_overlap import box_iou
 from trackfw_plugins.maths.head_matching import match_heads
 
 DENSE_MODEL = Path(__file__).resolve().parents[1] / "plugins/detectors/models/head_cnn_dense.onnx"
@@ -145,21 +146,6 @@ def frames_of(arguments: argparse.Namespace) -> Iterator[tuple[str, list[Annotat
     for dataset in arguments.dataset:
         frames = list(iter_dataset_frames(dataset, arguments.frame_step))
         yield str(dataset), frames
-
-
-def box_iou(first: np.ndarray, second: np.ndarray) -> np.ndarray:
-    """``(K, N)`` IoU of ``(K, 4)`` and ``(N, 4)`` boxes ``(left, top, width, height)``.
-
-    >>> box_iou(np.array([[0.0, 0, 10, 10]]), np.array([[5.0, 0, 10, 10], [20.0, 0, 1, 1]])).round(3).tolist()
-    [[0.333, 0.0]]
-    """
-    low = np.maximum(first[:, None, :2], second[None, :, :2])
-    high = np.minimum(
-        first[:, None, :2] + first[:, None, 2:], second[None, :, :2] + second[None, :, 2:]
-    )
-    overlap = np.clip(high - low, 0.0, None).prod(axis=2)
-    union = first[:, None, 2:].prod(axis=2) + second[None, :, 2:].prod(axis=2) - overlap
-    return overlap / np.maximum(union, 1e-12)
 
 
 def match_boxes(boxes: np.ndarray, truth: np.ndarray, iou: float = 0.5) -> int:

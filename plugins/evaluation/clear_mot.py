@@ -27,6 +27,7 @@ import numpy as np
 
 from trackfw.arrays import FloatArray, IntArray
 from trackfw_plugins.maths.assignment import distance_matrix, hungarian
+from trackfw_plugins.maths.box_overlap import box_iou
 from trackfw_plugins.maths.confusion import PooledCounts, ratio
 
 Geometry = Literal["point", "box"]
@@ -136,26 +137,6 @@ def _frame_arrays(
     ids = np.fromiter(items.keys(), dtype=np.int64, count=len(items))
     positions = np.asarray(list(items.values()), dtype=np.float64).reshape(len(items), dimension)
     return ids, positions
-
-
-def box_iou(gt_boxes: FloatArray, hyp_boxes: FloatArray) -> FloatArray:
-    """``(N, M)`` intersection over union of ``(N, 4)`` and ``(M, 4)`` boxes ``(left, top, w, h)``.
-
-    >>> box_iou(np.array([[0.0, 0.0, 2.0, 2.0]]), np.array([[1.0, 0.0, 2.0, 2.0]])).round(4).tolist()
-    [[0.3333]]
-    """
-    gt_boxes = np.asarray(gt_boxes, dtype=np.float64).reshape(-1, 4)
-    hyp_boxes = np.asarray(hyp_boxes, dtype=np.float64).reshape(-1, 4)
-    gt_min, gt_max = gt_boxes[:, None, :2], gt_boxes[:, None, :2] + gt_boxes[:, None, 2:]
-    hyp_min, hyp_max = hyp_boxes[None, :, :2], hyp_boxes[None, :, :2] + hyp_boxes[None, :, 2:]
-    overlap = np.clip(np.minimum(gt_max, hyp_max) - np.maximum(gt_min, hyp_min), 0.0, None)
-    intersection = overlap[..., 0] * overlap[..., 1]
-    gt_area = np.prod(np.clip(gt_boxes[:, 2:], 0.0, None), axis=1)[:, None]
-    hyp_area = np.prod(np.clip(hyp_boxes[:, 2:], 0.0, None), axis=1)[None, :]
-    union = gt_area + hyp_area - intersection
-    iou = np.zeros_like(intersection)
-    np.divide(intersection, union, out=iou, where=(intersection > 0) & (union > 0))
-    return iou
 
 
 def pairwise_distances(

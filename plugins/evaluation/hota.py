@@ -24,11 +24,11 @@ from trackfw.arrays import FloatArray, IntArray
 from trackfw_plugins.evaluation.clear_mot import (
     FrameObservations,
     Geometry,
-    box_iou,
     default_threshold,
     identity_indices,
     pairwise_distances,
 )
+from trackfw_plugins.maths.box_overlap import box_iou
 
 #: TrackEval's alpha thresholds 0.05 .. 0.95.
 ALPHAS: FloatArray = np.arange(0.05, 0.99, 0.05)

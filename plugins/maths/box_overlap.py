@@ -1,7 +1,8 @@
 """Overlap of axis-aligned ``(left, top, width, height)`` boxes: intersection areas and IoU.
 
-Shared by the batch trackers (ByteTrack's and DPNMS's box association) and the segment tracker's
-appearance memory (how much of a person another one covers).
+Shared by the batch trackers (ByteTrack's and DPNMS's box association), the segment tracker's
+appearance memory (how much of a person another one covers), the box metrics of the evaluation
+and the detector accuracy benchmark.
 """
 
 from __future__ import annotations
@@ -18,10 +19,15 @@ def box_iou(boxes_a: FloatArray, boxes_b: FloatArray) -> FloatArray:
 
     >>> box_iou(np.array([[0.0, 0, 80, 80]]), np.array([[26.0, 0, 80, 80]])).round(3).tolist()
     [[0.509]]
+    >>> box_iou(np.array([[0.0, 0, 2, 2]]), np.array([[1.0, 0, 2, 2], [5.0, 5, -1, 2]])).round(4).tolist()
+    [[0.3333, 0.0]]
     """
+    boxes_a = np.asarray(boxes_a, dtype=np.float64).reshape(-1, 4)
+    boxes_b = np.asarray(boxes_b, dtype=np.float64).reshape(-1, 4)
     intersection = box_intersection(boxes_a, boxes_b)
-    area_a = boxes_a[:, 2] * boxes_a[:, 3]
-    area_b = boxes_b[:, 2] * boxes_b[:, 3]
+    # A box of negative width or height (a malformed row of a tracks file) covers nothing.
+    area_a = np.prod(np.clip(boxes_a[:, 2:], 0.0, None), axis=1)
+    area_b = np.prod(np.clip(boxes_b[:, 2:], 0.0, None), axis=1)
     union = area_a[:, None] + area_b[None, :] - intersection
     return np.divide(intersection, union, out=np.zeros_like(intersection), where=union > 0)
 
