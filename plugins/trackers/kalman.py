@@ -290,9 +290,18 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         life = self.life
         expected = life.expected(inactive, self.bank.positions, anchors)
         free = np.setdiff1d(np.arange(len(detections)), taken)
-        cost, entering = life.reacquire_cost(
-            t, expected, inactive, detections.points[free], box_sides(detections)[free]
-        )
+        points, sides = detections.points[free], box_sides(detections)[free]
+        cost, entering = life.reacquire_cost(t, expected, inactive, points, sides)
+        unseen = life.last_matched[inactive] <= self.started_at
+        if unseen.any():
+            # Offsets from given start positions carry a target the detector has not found yet
+            # along with its neighbours; it may as well be standing where it was given.
+            given, given_entering = life.reacquire_cost(
+                t, life.anchor[inactive], inactive, points, sides
+            )
+            nearer = unseen[:, None] & (given < cost)
+            cost = np.where(nearer, given, cost)
+            entering = np.where(nearer, given_entering, entering)
         # Through the border only with a look that agrees: without a descriptor (or with
         # 'none') a target never re-enters away from its expected place.
         veto = self.memory.veto(self.image, inactive, detections, free, cost <= 1.0, entering)

@@ -106,6 +106,22 @@ def test_lost_target_is_reacquired_with_its_old_id_where_the_group_says() -> Non
     assert np.allclose(states[1].position, back[1], atol=1.0)
 
 
+def test_a_target_not_yet_detected_is_also_looked_for_where_it_was_given() -> None:
+    # Target 2's head was given on the start frame, but the detector has not found it yet. Its
+    # neighbours walk 120 px right in 3 s while it stands; its head, detected at last where it
+    # was given, is taken there, far from where the offsets to the walkers put it.
+    tracker = _tracker(lost_after_s=0.2)
+    walk = np.array([1.6, 0.0])  # px per frame
+    for t in range(1, 76):
+        tracker.step(t, _seen(GROUP[[0, 2]] + walk * t))
+    assert tracker.statuses()[1] == "lost"
+    tracker.step(76, _seen(np.vstack([GROUP[[0, 2]] + walk * 76, GROUP[1]])))
+    states = tracker.states()
+    assert [s.status for s in states] == ["tracked"] * 3
+    assert states[1].matched_detection == 2
+    assert np.allclose(states[1].position, GROUP[1])
+
+
 def test_without_neighbours_the_gate_grows_with_time_lost() -> None:
     # Alone, a lost target waits where it was last seen. 55 px away is beyond the first
     # re-acquisition gate (60 px at 1080p = 40 px at 720p) and the tracker's 33 px gate, and
