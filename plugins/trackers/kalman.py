@@ -187,9 +187,6 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.target_ids = np.asarray(target_ids, dtype=np.int64)
         self.bank = KalmanBank.start(positions, params.P0, params.Q, params.R)
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
-        # Given start positions (a dataset's gt, a user's clicks) are not where the detector puts
-        # the same heads: until a detection supports a target its gate may be wider.
-        self.started_at = t
         self.life = Lifecycle.start(params.lifecycle, self.video, t, positions)
         self.memory = AppearanceMemory(
             params.appearance, len(positions), self.video.height, self.life.fps
@@ -219,7 +216,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         if self.params.association == "nearest":
             return greedy_nearest(cost, self.gate)
         start = self.params.start_gate_px_at_1080
-        unseen = self.life.last_matched[targets] <= self.started_at
+        # Until a detection supports a target its gate may be wider (Lifecycle.unseen).
+        unseen = self.life.unseen(targets)
         if start is None or self.gate is None or not unseen.any():
             return hungarian(cost, self.gate)
         # Beyond the usual gate only a clearly nearest detection: another one nearby may be a
@@ -290,18 +288,9 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         life = self.life
         expected = life.expected(inactive, self.bank.positions, anchors)
         free = np.setdiff1d(np.arange(len(detections)), taken)
-        points, sides = detections.points[free], box_sides(detections)[free]
-        cost, entering = life.reacquire_cost(t, expected, inactive, points, sides)
-        unseen = life.last_matched[inactive] <= self.started_at
-        if unseen.any():
-            # Offsets from given start positions carry a target the detector has not found yet
-            # along with its neighbours; it may as well be standing where it was given.
-            given, given_entering = life.reacquire_cost(
-                t, life.anchor[inactive], inactive, points, sides
-            )
-            nearer = unseen[:, None] & (given < cost)
-            cost = np.where(nearer, given, cost)
-            entering = np.where(nearer, given_entering, entering)
+        cost, entering = life.reacquire_cost(
+            t, expected, inactive, detections.points[free], box_sides(detections)[free]
+        )
         # Through the border only with a look that agrees: without a descriptor (or with
         # 'none') a target never re-enters away from its expected place.
         veto = self.memory.veto(self.image, inactive, detections, free, cost <= 1.0, entering)

@@ -109,6 +109,7 @@ class Lifecycle:
             frame (heads on a ground plane grow linearly with the image row).
         exit_side: ``(K,)`` image edge a target left through (0 left, 1 right, 2 top, 3
             bottom), -1 while it has not left.
+        started_at: frame on which the targets were given (their start positions).
     """
 
     settings: LifecycleSettings
@@ -126,6 +127,7 @@ class Lifecycle:
     relative_size: FloatArray
     size_line: FloatArray
     exit_side: IntArray
+    started_at: int
 
     @classmethod
     def start(
@@ -149,6 +151,7 @@ class Lifecycle:
             np.ones(count),
             np.array([np.nan, 0.0]),
             np.full(count, -1, dtype=np.int64),
+            t,
         )
         lifecycle.supported(t, np.arange(count), positions, np.full(count, np.nan))
         return lifecycle
@@ -358,6 +361,14 @@ class Lifecycle:
         )
         return np.minimum(gate, settings.reacquire_max_px_at_1080) * self.scale
 
+    def unseen(self, rows: IntArray) -> BoolArray:
+        """``(M,)`` whether no detection has supported each of ``rows`` since its given start.
+
+        Given start positions (a dataset's gt, a user's clicks) are not where the detector puts
+        the same heads, nor are the offsets measured between them.
+        """
+        return self.last_matched[rows] <= self.started_at
+
     def reacquire_cost(
         self, t: int, expected: FloatArray, rows: IntArray, points: FloatArray, sizes: FloatArray
     ) -> tuple[FloatArray, BoolArray]:
@@ -367,8 +378,24 @@ class Lifecycle:
 
         The cost is the distance over the target's gate, so a target lost longer reaches
         farther; an out-of-view target comes back through the edge near where it is expected.
-        Heads of another size are refused (infinite cost).
+        Heads of another size are refused (infinite cost). A target not yet detected
+        (:meth:`unseen`) is also looked for at its given start position, each pair taking the
+        cheaper of the two places: offsets between given points carry a target that stands
+        along with neighbours that walk.
         """
+        cost, entering = self._cost_from(t, expected, rows, points, sizes)
+        unseen = self.unseen(rows)
+        if unseen.any():
+            given, given_entering = self._cost_from(t, self.anchor[rows], rows, points, sizes)
+            nearer = unseen[:, None] & (given < cost)
+            cost = np.where(nearer, given, cost)
+            entering = np.where(nearer, given_entering, entering)
+        return cost, entering
+
+    def _cost_from(
+        self, t: int, expected: FloatArray, rows: IntArray, points: FloatArray, sizes: FloatArray
+    ) -> tuple[FloatArray, BoolArray]:
+        """:meth:`reacquire_cost` with each of ``rows`` expected at one ``(M, 2)`` place."""
         near = np.linalg.norm(expected[:, None, :] - points[None, :, :], axis=2)
         near = near / self.gates(t, rows)[:, None]
         near[self.size_mismatch(rows, sizes)] = np.inf
