@@ -28,6 +28,7 @@ import numpy as np
 from trackfw.arrays import FloatArray, IntArray
 from trackfw.dataset import frame_source_path
 from trackfw.errors import UserError
+from trackfw.filling import fill_missing
 from trackfw.front import FrameFront, FrameRecord, Observation
 from trackfw.pipeline import Pipeline
 from trackfw.records import (
@@ -209,7 +210,7 @@ class Engine:
         front = FrameFront(
             video, stages.detector, stages.classifier, replay, stages_need_pixels(live), progress
         )
-        loop = _OnlineLoop(stages, video, self.targets)
+        loop = _OnlineLoop(stages, video, self.targets, self.pipeline.engine.fill_missing_s)
         started = time.perf_counter()
         for observation in front:
             loop.observe(observation)
@@ -247,14 +248,24 @@ class _OnlineLoop:
     asks the gap matcher to re-link the targets and starts a new segment.
     """
 
-    def __init__(self, stages: PipelineStages, video: VideoContext, targets: TargetChooser) -> None:
+    def __init__(
+        self,
+        stages: PipelineStages,
+        video: VideoContext,
+        targets: TargetChooser,
+        fill_missing_s: float | None = None,
+    ) -> None:
         self.stages = stages
+        self.fill_missing_frames = (
+            0 if fill_missing_s is None else round(fill_missing_s * video.fps)
+        )
         self.video = video
         self.targets = targets
         self.start = targets.start_frame(video)
         self.frames: list[FrameRecord] = []
         self.gaps: list[GapRecord] = []
         self.reported: list[tuple[int, FloatArray, np.ndarray]] = []
+        self.segment_numbers: list[int] = []  # of each reported frame: +1 at each frame b
         self.segment: Segment | None = None
         self.initialised_from = ""
         self.interval_open = False
@@ -281,6 +292,7 @@ class _OnlineLoop:
         statuses = np.asarray(self.stages.tracker.statuses(), dtype=object)
         self.segment.add(observation, positions)
         self.reported.append((observation.t, positions, statuses == TRACKED))
+        self.segment_numbers.append(len(self.gaps))
         observation.record.target_states = {
             state: int(np.count_nonzero(statuses == state)) for state in TARGET_STATES
         }
@@ -340,13 +352,27 @@ class _OnlineLoop:
             video=self.video,
             target_ids=_ids(segment.target_ids),
             tracks=_inside_image(
-                self.reported, segment.target_ids, self.video.width, self.video.height
+                self._filled(), segment.target_ids, self.video.width, self.video.height
             ),
             frames=self.frames,
             gaps=self.gaps,
             initialised_from=self.initialised_from,
             seconds=seconds,
         )
+
+    def _filled(self) -> list[tuple[int, FloatArray, np.ndarray]]:
+        """The reports with short absences filled in (``engine.fill_missing_s``)."""
+        if self.fill_missing_frames <= 0:
+            return self.reported
+        frames = [t for t, _, _ in self.reported]
+        positions, reported = fill_missing(
+            frames,
+            self.segment_numbers,
+            [p for _, p, _ in self.reported],
+            [r for _, _, r in self.reported],
+            self.fill_missing_frames,
+        )
+        return list(zip(frames, positions, reported, strict=True))
 
 
 def _time(observation: Observation, kind: str, since: float) -> float:

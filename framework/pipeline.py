@@ -68,6 +68,11 @@ class EngineOptions(FiniteModel):
         ge=1,
         description="1-based frame on which the targets are chosen (nothing is reported before it); null: the first readable frame, or with init: targets the file's first frame",
     )
+    fill_missing_s: float | None = Field(
+        None,
+        ge=0.0,
+        description="after the video, a target not reported for at most this long (seconds) between two frames of one segment where it is, is reported on the frames between, on the straight line from one of those points to the other (offline, as ByteTrack interpolates); null = off, the loop's reports as they were made",
+    )
     infoless_frames: Literal["keep", "drop"] = Field(
         "keep",
         description="batch pipelines: 'keep' gives the batch tracker every frame's detections, info-less frames included (the paper's protocol); 'drop' leaves out the frames the classifier calls info-less",
