@@ -60,11 +60,7 @@ def fill_missing(
         rows = np.flatnonzero(table[:, target])
         for before, after in pairwise(rows.tolist()):
             absent = int(frame_index[after] - frame_index[before] - 1)
-            if (
-                after == before + 1
-                or absent > max_frames
-                or segment_index[before] != segment_index[after]
-            ):
+            if absent > max_frames or segment_index[before] != segment_index[after]:
                 continue
             start = positions[before][target]
             end = positions[after][target]
