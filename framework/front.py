@@ -6,8 +6,9 @@ run; from a stage cache, their recorded outputs are replayed. Either way the fir
 (the one the targets are initialised on) is informative, whatever the classifier said.
 
 A classifier with ``hindsight_frames`` may revise its last info-less decisions when it leaves an
-interval (docs/algorithms/index.md#the-online-loop); the front then holds back info-less frames
-that long, so that the tracking only ever sees final decisions, in frame order.
+interval, and one with ``onset_frames`` its last informative decisions when it enters one
+(docs/algorithms/index.md#the-online-loop); the front then holds back those frames that long,
+so that the tracking only ever sees final decisions, in frame order.
 """
 
 from __future__ import annotations
@@ -119,26 +120,15 @@ class FrameFront:
 
     def __iter__(self) -> Iterator[Observation]:
         # A classifier that decides in hindsight may turn the last few info-less frames
-        # informative once it leaves an interval: those frames wait here, in order, until their
-        # decision is final. A replay holds the final decisions already.
-        window = 0
+        # informative once it leaves an interval, or the last few informative frames info-less
+        # once it enters one: those frames wait here, in order, until their decision is final.
+        # A replay holds the final decisions already.
+        window = onset = 0
         if self.replay is None and self.classifier is not None:
             window = self.classifier.hindsight_frames
+            onset = self.classifier.onset_frames
         held: deque[Observation] = deque()
-        first = True
-        for t, image, status in iter_frames(self.video, decode=self.decode):
-            if self.progress is not None:
-                self.progress(t)
-            if self.replay is not None and status == "ok":
-                status = self.replay.status_of(t)
-            if status != "ok":
-                observation = Observation(
-                    FrameRecord(t, status), image, done_at=time.perf_counter()
-                )
-                revises = 0
-            else:
-                observation, revises = self._observe(t, image, first)
-                first = False
+        for observation, revises in _onset_revised(self._observations(), onset):
             if window and observation.readable and observation.infoless:
                 held.append(observation)
                 if len(held) > window:
@@ -152,7 +142,23 @@ class FrameFront:
         while held:
             yield _released(held.popleft())
 
-    def _observe(self, t: int, image: UInt8Array | None, first: bool) -> tuple[Observation, int]:
+    def _observations(self) -> Iterator[tuple[Observation, int, int]]:
+        """Each frame's observation with the classifier's ``revises`` and ``onset``."""
+        first = True
+        for t, image, status in iter_frames(self.video, decode=self.decode):
+            if self.progress is not None:
+                self.progress(t)
+            if self.replay is not None and status == "ok":
+                status = self.replay.status_of(t)
+            if status != "ok":
+                yield Observation(FrameRecord(t, status), image, done_at=time.perf_counter()), 0, 0
+            else:
+                yield self._observe(t, image, first)
+                first = False
+
+    def _observe(
+        self, t: int, image: UInt8Array | None, first: bool
+    ) -> tuple[Observation, int, int]:
         record = FrameRecord(t, "ok")
         if self.replay is None:
             frame = FrameData(t, image, self.video, first)
@@ -162,16 +168,17 @@ class FrameFront:
             record.milliseconds["detector"] = (tock - tick) * 1e3
             probability: float | None = None
             said_infoless = False
-            revises = 0
+            revises = onset = 0
             if self.classifier is not None:
                 decision = self.classifier.classify(frame, detections)
                 record.milliseconds["classifier"] = (time.perf_counter() - tock) * 1e3
                 probability, said_infoless = float(decision.probability), bool(decision.infoless)
                 revises = 0 if said_infoless else max(0, int(decision.revises))
+                onset = max(0, int(decision.onset)) if said_infoless else 0
             done = time.perf_counter()
         else:
             detections, recorded, said_infoless, detector_ms, classifier_ms = self.replay.frame(t)
-            revises = 0
+            revises = onset = 0
             record.milliseconds["detector"] = detector_ms
             probability = recorded
             if self.classifier is not None:
@@ -183,7 +190,37 @@ class FrameFront:
         # The first frame carries the annotation: it is informative whatever was said.
         record.infoless = said_infoless and not first
         record.detections = detections
-        return Observation(record, image, first, done), revises
+        return Observation(record, image, first, done), revises, onset
+
+
+def _onset_revised(
+    observations: Iterator[tuple[Observation, int, int]], frames: int
+) -> Iterator[tuple[Observation, int]]:
+    """``observations`` with their start-of-interval revisions applied, and their ``revises``.
+
+    Informative frames wait (at most ``frames`` of them) until the next frame says whether
+    the start of an interval turns them info-less; the first frame never does.
+    """
+    held: deque[tuple[Observation, int]] = deque()
+    for observation, revises, onset in observations:
+        if frames and observation.readable and not observation.infoless:
+            held.append((observation, revises))
+            if len(held) > frames:
+                yield _released_with(held.popleft())
+            continue
+        for revised, _ in itertools.islice(reversed(held), onset):
+            if not revised.first:
+                revised.record.infoless = True
+        while held:
+            yield _released_with(held.popleft())
+        yield observation, revises
+    while held:
+        yield _released_with(held.popleft())
+
+
+def _released_with(entry: tuple[Observation, int]) -> tuple[Observation, int]:
+    """A held ``(observation, revises)`` leaving the onset queue."""
+    return _released(entry[0]), entry[1]
 
 
 def _released(observation: Observation) -> Observation:

@@ -201,12 +201,16 @@ class ClassifierDecision:
             info-less, are informative after all: a decision in hindsight at the end of an
             interval, at most the classifier's ``hindsight_frames``
             (docs/algorithms/index.md#the-online-loop).
+        onset: on an info-less frame, how many of the frames just before it, decided
+            informative, are info-less after all: a decision in hindsight at the start of an
+            interval, at most the classifier's ``onset_frames``.
     """
 
     probability: float
     infoless: bool
     features: FloatArray | None = None
     revises: int = 0
+    onset: int = 0
 
 
 @dataclass

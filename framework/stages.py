@@ -225,6 +225,15 @@ class Classifier(Stage[P]):
         """
         return 0
 
+    @property
+    def onset_frames(self) -> int:
+        """The most frames a later decision may turn from informative to info-less.
+
+        The front holds back that many informative frames before the tracking sees them
+        (:attr:`ClassifierDecision.onset`); 0, the default, keeps every decision final at once.
+        """
+        return 0
+
 
 class Tracker(Stage[P]):
     """Tracks the fixed set of targets inside a segment (between info-less intervals)."""

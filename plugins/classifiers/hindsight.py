@@ -1,4 +1,4 @@
-"""The end of an interval decided in hindsight [OURS].
+"""The end (and the start) of an interval decided in hindsight [OURS].
 
 See docs/algorithms/infoless-classifier.md#hindsight.
 
@@ -85,4 +85,67 @@ class EndHindsight:
         return revised
 
 
-__all__ = ["EndHindsight"]
+class OnsetHindsight:
+    """Revises the last informative decisions when a classifier enters an interval.
+
+    A camera that starts to turn away has already moved on the frame before the classifier's
+    probability crosses its threshold: on TUD virtual-wearer videos the first frame of every
+    interval scored at least 0.3, and a third of the decided intervals began one frame late.
+    That frame then becomes frame a, whose crops and tracked places are the turn's, not the
+    group's. When the classifier enters an interval on frame t, :class:`OnsetHindsight` walks
+    back from t - 1 over the frames decided informative and turns each one info-less while its
+    probability is at least ``min_probability``; the walk stops at the first frame that fails,
+    at a frame that ended an interval itself, at the first frame of the video, and after
+    ``frames`` frames.
+
+    Args:
+        frames: the most frames one revision may reach back (0: never revise).
+        min_probability: the smallest info-less probability of a revised frame.
+
+    >>> onset = OnsetHindsight(frames=2, min_probability=0.3)
+    >>> # (info-less, probability, ended an interval): steady, steady, the turn begins, away
+    >>> [onset.push(*frame) for frame in [(False, 0.1, False), (False, 0.12, False)]]
+    [0, 0]
+    >>> onset.push(False, 0.45, False), onset.push(True, 0.9, False), onset.push(True, 0.95, False)
+    (0, 1, 0)
+    """
+
+    def __init__(self, frames: int, min_probability: float) -> None:
+        if frames < 0:
+            raise ValueError(f"onset frames must be at least 0, got {frames}")
+        self.frames = frames
+        self.min_probability = min_probability
+        # [info-less, probability, may be revised] of the latest frames, newest last.
+        self._recent: deque[list[float | bool]] = deque(maxlen=frames + 1)
+
+    def reset(self) -> None:
+        """Start a new video."""
+        self._recent.clear()
+
+    def push(self, infoless: bool, probability: float, fixed: bool) -> int:
+        """Record the newest frame's decision; return how many frames before it turn info-less.
+
+        Args:
+            infoless: the classifier's decision on the newest frame.
+            probability: its info-less probability.
+            fixed: whether its decision may never be revised (the first frame of the video,
+                or a frame that ended an interval in hindsight).
+
+        Returns:
+            0 unless the frame is info-less and follows informative ones that pass the test.
+        """
+        history = list(self._recent)
+        self._recent.append([infoless, float(probability), not fixed])
+        if not infoless or self.frames == 0 or not history or history[-1][0]:
+            return 0
+        revised = 0
+        for entry in history[: -self.frames - 1 : -1]:
+            was_infoless, frame_probability, revisable = entry
+            if was_infoless or not revisable or frame_probability < self.min_probability:
+                break
+            entry[0] = True
+            revised += 1
+        return revised
+
+
+__all__ = ["EndHindsight", "OnsetHindsight"]

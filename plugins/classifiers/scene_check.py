@@ -86,6 +86,11 @@ class SceneCheckClassifier(Classifier[SceneCheckParams]):
         """The SVM's ``hindsight_frames``."""
         return self.svm.hindsight_frames
 
+    @property
+    def onset_frames(self) -> int:
+        """The SVM's ``onset_frames``."""
+        return self.svm.onset_frames
+
     def start(self, video: VideoContext) -> None:
         """Forget the previous video's frames, reference, interval state and anchor."""
         self.svm.start(video)
@@ -111,12 +116,7 @@ class SceneCheckClassifier(Classifier[SceneCheckParams]):
         if not infoless:
             self._anchor = frame.image.copy()
             self._anchor_boxes = detections.boxes
-        return ClassifierDecision(
-            probability=probability,
-            infoless=infoless,
-            features=features,
-            revises=svm.revision(infoless, features),
-        )
+        return svm.decision(frame, probability, infoless, features)
 
 
 __all__ = ["SceneCheckClassifier", "SceneCheckParams", "small_motion"]

@@ -41,7 +41,7 @@ from trackfw.arrays import FloatArray
 from trackfw.errors import UserError
 from trackfw.records import ClassifierDecision, Detections, FrameData, VideoContext
 from trackfw.stages import Classifier, StageParams
-from trackfw_plugins.classifiers.hindsight import EndHindsight
+from trackfw_plugins.classifiers.hindsight import EndHindsight, OnsetHindsight
 from trackfw_plugins.classifiers.infoless_features import (
     DEFAULT_C_MAX,
     FEATURE_LAYOUT,
@@ -202,6 +202,20 @@ class SvmParams(StageParams):
     hindsight_min_detections: int = Field(
         default=1, ge=0, description="The fewest detections on a revised frame."
     )
+    onset_frames: int = Field(
+        default=0,
+        ge=0,
+        le=10,
+        description="On entering an interval, the most frames just before, decided informative,"
+        " that may turn info-less: each scored at least onset_probability (OURS; 0, the"
+        " paper's, never revises).",
+    )
+    onset_probability: float = Field(
+        default=0.3,
+        ge=0.0,
+        le=1.0,
+        description="The smallest probability of a frame that the start of an interval revises.",
+    )
 
     @field_validator("history")
     @classmethod
@@ -292,22 +306,43 @@ class SvmClassifier(Classifier[SvmParams]):
             self.params.hindsight_max_motion,
             self.params.hindsight_min_detections,
         )
+        self.onset = OnsetHindsight(self.params.onset_frames, self.params.onset_probability)
 
     @property
     def hindsight_frames(self) -> int:
         """``hindsight_frames``: how far back leaving an interval may revise decisions."""
         return self.params.hindsight_frames
 
+    @property
+    def onset_frames(self) -> int:
+        """``onset_frames``: how far back entering an interval may revise decisions."""
+        return self.params.onset_frames
+
     def start(self, video: VideoContext) -> None:
         """Forget the previous video's frames, reference and interval state."""
         self.extractor.reset()
         self.decider.reset()
         self.hindsight.reset()
+        self.onset.reset()
 
     def revision(self, infoless: bool, features: FloatArray) -> int:
         """How many frames before the latest one its decision turns informative (hindsight)."""
         return self.hindsight.push(
             infoless, float(features[HISTORY - 1]), float(features[2 * HISTORY - 1])
+        )
+
+    def decision(
+        self, frame: FrameData, probability: float, infoless: bool, features: FloatArray
+    ) -> ClassifierDecision:
+        """The decision on ``frame``, with both hindsight revisions."""
+        revises = self.revision(infoless, features)
+        onset = self.onset.push(infoless, probability, frame.first or revises > 0)
+        return ClassifierDecision(
+            probability=probability,
+            infoless=infoless,
+            features=features,
+            revises=revises,
+            onset=onset,
         )
 
     def classify(self, frame: FrameData, detections: Detections) -> ClassifierDecision:
@@ -320,9 +355,4 @@ class SvmClassifier(Classifier[SvmParams]):
         # first frame is informative: it sets the reference of C_t.
         infoless = self.decider.decide(probability, features) and not frame.first
         self.decider.settle(frame.t, infoless, features)
-        return ClassifierDecision(
-            probability=probability,
-            infoless=infoless,
-            features=features,
-            revises=self.revision(infoless, features),
-        )
+        return self.decision(frame, probability, infoless, features)

@@ -105,25 +105,39 @@ class Scripted(Classifier):
 
     name = "scripted"
 
-    def __init__(self, script: list[tuple[bool, int]], hindsight: int) -> None:
+    def __init__(
+        self, script: list[tuple[bool, int]], hindsight: int, onset: dict[int, int] | None = None
+    ) -> None:
         super().__init__()
         self.script = script
         self.hindsight = hindsight
+        self.onset = onset or {}
         self.classified: list[int] = []
 
     @property
     def hindsight_frames(self) -> int:
         return self.hindsight
 
+    @property
+    def onset_frames(self) -> int:
+        return max(self.onset.values(), default=0)
+
     def classify(self, frame: FrameData, detections: Detections) -> ClassifierDecision:
         self.classified.append(frame.t)
         infoless, revises = self.script[frame.t]
-        return ClassifierDecision(probability=0.5, infoless=infoless, revises=revises)
+        return ClassifierDecision(
+            probability=0.5, infoless=infoless, revises=revises, onset=self.onset.get(frame.t, 0)
+        )
 
 
-def _front(points_video, script: list[tuple[bool, int]], hindsight: int):
+def _front(
+    points_video,
+    script: list[tuple[bool, int]],
+    hindsight: int,
+    onset: dict[int, int] | None = None,
+):
     video = load_video(points_video("v", n_frames=len(script), intervals=[]))
-    classifier = Scripted(script, hindsight)
+    classifier = Scripted(script, hindsight, onset)
     front = FrameFront(video, TwoPoints(), classifier, None, False)
     return front, classifier
 
@@ -157,3 +171,34 @@ def test_hindsight_may_undo_a_short_interval_whole_and_never_reaches_further(poi
     # Without hindsight the front ignores what a decision says about earlier frames.
     front, _ = _front(points_video, script, hindsight=0)
     assert [o.infoless for o in front] == [False, True, True, False, True, False]
+
+
+def test_the_start_of_an_interval_revises_the_frames_before_it_before_tracking_sees_them(
+    points_video,
+) -> None:
+    # Frames 4..6 decided info-less; frame 4 enters the interval and turns 3 and 2 info-less.
+    script = [(False, 0)] * 4 + [(True, 0)] * 3 + [(False, 0)] * 3
+    front, classifier = _front(points_video, script, hindsight=0, onset={4: 2})
+    seen = []
+    for observation in front:
+        seen.append((observation.t, observation.infoless, classifier.classified[-1]))
+        # An informative frame waits for at most 2 later decisions.
+        assert classifier.classified[-1] - observation.t <= 2
+    assert [t for t, _, _ in seen] == list(range(10))
+    assert [t for t, infoless, _ in seen if infoless] == [2, 3, 4, 5, 6]
+    assert [(t, last) for t, _, last in seen if t in (2, 3)] == [(2, 4), (3, 4)]
+
+
+def test_the_start_of_an_interval_never_turns_the_first_frame_info_less(points_video) -> None:
+    script = [(False, 0), (True, 0), (False, 0)]
+    front, _ = _front(points_video, script, hindsight=0, onset={1: 1})
+    assert [o.infoless for o in front] == [False, True, False]
+
+
+def test_both_revisions_together_keep_frame_order(points_video) -> None:
+    # 2..4 info-less, 5 leaves it revising 4; 7 enters another, revising 6.
+    script = [(False, 0)] * 2 + [(True, 0)] * 3 + [(False, 1), (False, 0), (True, 0), (False, 0)]
+    front, _ = _front(points_video, script, hindsight=3, onset={7: 1})
+    observations = list(front)
+    assert [o.t for o in observations] == list(range(9))
+    assert [o.t for o in observations if o.infoless] == [2, 3, 6, 7]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from trackfw_plugins.classifiers.hindsight import EndHindsight
+from trackfw_plugins.classifiers.hindsight import EndHindsight, OnsetHindsight
 from trackfw_plugins.classifiers.scene_check import SceneCheckClassifier, SceneCheckParams
 from trackfw_plugins.classifiers.svm import SvmClassifier, SvmParams
 
@@ -71,3 +71,35 @@ def test_the_svm_classifiers_declare_their_hindsight() -> None:
     assert SvmClassifier(SvmParams(hindsight_frames=6)).hindsight_frames == 6
     params = SceneCheckParams(svm=SvmParams(hindsight_frames=4))
     assert SceneCheckClassifier(params).hindsight_frames == 4
+
+
+def test_entering_revises_the_frames_the_turn_had_begun_on() -> None:
+    onset = OnsetHindsight(frames=3, min_probability=0.3)
+    # (info-less, probability, fixed): steady, then two frames of a beginning turn.
+    assert [onset.push(*f) for f in [(False, 0.1, True), (False, 0.2, False)]] == [0, 0]
+    assert [onset.push(*f) for f in [(False, 0.35, False), (False, 0.45, False)]] == [0, 0]
+    assert onset.push(True, 0.9, False) == 2
+    # Inside the interval nothing more is revised.
+    assert onset.push(True, 0.95, False) == 0
+
+
+def test_the_onset_walk_stops_at_a_fixed_frame_and_at_the_window() -> None:
+    onset = OnsetHindsight(frames=1, min_probability=0.3)
+    for frame in [(False, 0.4, False), (False, 0.4, False)]:
+        onset.push(*frame)
+    assert onset.push(True, 0.8, False) == 1  # the window: one frame
+    fixed = OnsetHindsight(frames=4, min_probability=0.3)
+    fixed.push(False, 0.4, False)
+    fixed.push(False, 0.45, True)  # ended an interval in hindsight: never revised
+    assert fixed.push(True, 0.8, False) == 0
+    never = OnsetHindsight(frames=0, min_probability=0.3)
+    never.push(False, 0.45, False)
+    assert never.push(True, 0.8, False) == 0
+    with pytest.raises(ValueError, match="at least 0"):
+        OnsetHindsight(frames=-1, min_probability=0.3)
+
+
+def test_the_svm_classifiers_declare_their_onset() -> None:
+    assert SvmClassifier(SvmParams()).onset_frames == 0
+    assert SvmClassifier(SvmParams(onset_frames=2)).onset_frames == 2
+    assert SceneCheckClassifier(SceneCheckParams(svm=SvmParams(onset_frames=1))).onset_frames == 1
