@@ -115,8 +115,8 @@ class OnsetHindsight:
             raise ValueError(f"onset frames must be at least 0, got {frames}")
         self.frames = frames
         self.min_probability = min_probability
-        # [info-less, probability, may be revised] of the latest frames, newest last.
-        self._recent: deque[list[float | bool]] = deque(maxlen=frames + 1)
+        # [info-less, probability, may be revised] of the frames a revision may reach, newest last.
+        self._recent: deque[list[float | bool]] = deque(maxlen=frames)
 
     def reset(self) -> None:
         """Start a new video."""
@@ -132,19 +132,18 @@ class OnsetHindsight:
                 or a frame that ended an interval in hindsight).
 
         Returns:
-            0 unless the frame is info-less and follows informative ones that pass the test.
+            0 unless the frame is info-less and follows informative ones that pass the test
+            (inside an interval the walk stops at once, on the info-less frame before).
         """
-        history = list(self._recent)
-        self._recent.append([infoless, float(probability), not fixed])
-        if not infoless or self.frames == 0 or not history or history[-1][0]:
-            return 0
         revised = 0
-        for entry in history[: -self.frames - 1 : -1]:
-            was_infoless, frame_probability, revisable = entry
-            if was_infoless or not revisable or frame_probability < self.min_probability:
-                break
-            entry[0] = True
-            revised += 1
+        if infoless:
+            for entry in reversed(self._recent):
+                was_infoless, frame_probability, revisable = entry
+                if was_infoless or not revisable or frame_probability < self.min_probability:
+                    break
+                entry[0] = True
+                revised += 1
+        self._recent.append([infoless, float(probability), not fixed])
         return revised
 
 

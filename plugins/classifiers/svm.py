@@ -325,17 +325,13 @@ class SvmClassifier(Classifier[SvmParams]):
         self.hindsight.reset()
         self.onset.reset()
 
-    def revision(self, infoless: bool, features: FloatArray) -> int:
-        """How many frames before the latest one its decision turns informative (hindsight)."""
-        return self.hindsight.push(
-            infoless, float(features[HISTORY - 1]), float(features[2 * HISTORY - 1])
-        )
-
     def decision(
         self, frame: FrameData, probability: float, infoless: bool, features: FloatArray
     ) -> ClassifierDecision:
-        """The decision on ``frame``, with both hindsight revisions."""
-        revises = self.revision(infoless, features)
+        """The decision on ``frame``, with both hindsight revisions (end and start)."""
+        revises = self.hindsight.push(
+            infoless, float(features[HISTORY - 1]), float(features[2 * HISTORY - 1])
+        )
         onset = self.onset.push(infoless, probability, frame.first or revises > 0)
         return ClassifierDecision(
             probability=probability,
