@@ -105,6 +105,13 @@ class AppearanceSettings(FiniteModel):
         " descriptor, and again on a second crop swap_recheck_s later, has been taken over by"
         " someone else: it is lost (its descriptor kept); None: never checked",
     )
+    contest_margin: float | None = Field(
+        None,
+        ge=0.0,
+        description="a tracked target left without a detection, hidden behind the detection"
+        " another target took, takes that detection over when its look is nearer than the"
+        " holder's by this margin (the holder goes without); None: never contested",
+    )
     swap_recheck_s: float = Field(
         0.2, ge=0.0, description="seconds from a crop unlike the target to the second check"
     )

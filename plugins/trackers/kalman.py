@@ -235,6 +235,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         life = self.life
         active, inactive = life.active(), life.inactive()
         rows = self.associate(self.bank.positions[active], detections, active)
+        rows = self._contest(active, rows, detections)
         hit = rows >= 0
         targets, taken = active[hit], rows[hit]
         self.bank.correct(targets, detections.points[taken])
@@ -253,6 +254,59 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         life.unsupported(t, missing, predicted, hidden)
         found, columns = self._reacquire(t, detections, inactive, targets, taken)
         life.supported(t, found, self.bank.positions[found], sides[columns])
+
+    def _contest(self, active: IntArray, rows: IntArray, detections: Detections) -> IntArray:
+        """Give a detection to the target hidden behind it when it looks more like that one.
+
+        Two people crossing give one detection; the Hungarian hands it to whichever prediction
+        lies nearer, and the other target, left without, is lost after a few frames and rarely
+        found again in a crowd. Each target left without a detection (``active`` rows with
+        ``rows`` -1) and hidden behind a detection another target took
+        (:meth:`Lifecycle.hidden_behind_which`) contests it by look: when its own look at the
+        detection is nearer than the holder's by ``appearance.contest_margin``, the detection
+        changes hands. Deciding between the two targets' own descriptors asks less of the
+        embedder than a fixed limit: on crowded low-resolution footage the same person a second
+        later and another person overlap in distance, but rarely in order.
+
+        Returns:
+            ``rows`` with the contested detections moved (a copy when any moved).
+        """
+        margin = self.params.appearance.contest_margin
+        hit = rows >= 0
+        if margin is None or self.image is None or not self.memory.active or hit.all():
+            return rows
+        if not hit.any():
+            return rows
+        holders, taken = np.flatnonzero(hit), rows[hit]
+        missing = np.flatnonzero(~hit)
+        behind = self.life.hidden_behind_which(
+            active[missing],
+            self.bank.positions[active[missing]],
+            detections.points[taken],
+            box_sides(detections)[taken],
+        )
+        contested = behind >= 0
+        if not contested.any():
+            return rows
+        missing, behind = missing[contested], behind[contested]
+        columns = np.unique(taken[behind])
+        targets = np.concatenate([active[missing], active[holders[behind]]])
+        look = self.memory.looks(self.image, targets, detections, columns)
+        column_of = {int(column): index for index, column in enumerate(columns)}
+        claims = []
+        for number, (row, holder) in enumerate(zip(missing, holders[behind], strict=True)):
+            column = column_of[int(rows[holder])]
+            own, held = look[number, column], look[len(missing) + number, column]
+            if np.isfinite(own) and np.isfinite(held) and own + margin < held:
+                claims.append((held - own, int(row), int(holder)))
+        if not claims:
+            return rows
+        rows = rows.copy()
+        # The clearest claim first; a detection changes hands once.
+        for _, claimant, held_by in sorted(claims, reverse=True):
+            if rows[held_by] >= 0 and rows[claimant] < 0:
+                rows[claimant], rows[held_by] = rows[held_by], NO_MATCH
+        return rows
 
     def _compensate(self, detections: Detections) -> None:
         """Warp the filters by the camera motion from the previous frame (when it registers)."""

@@ -262,12 +262,33 @@ class Lifecycle:
         ...                    taken, np.array([24.0])).tolist()
         [True, False]
         """
-        if self.settings.hidden_hold_s is None or len(rows) == 0 or len(taken) == 0:
+        if self.settings.hidden_hold_s is None:
             return np.zeros(len(rows), dtype=bool)
+        return np.asarray(self.hidden_behind_which(rows, predicted, taken, taken_sides) >= 0)
+
+    def hidden_behind_which(
+        self, rows: IntArray, predicted: FloatArray, taken: FloatArray, taken_sides: FloatArray
+    ) -> IntArray:
+        """``(M,)``: the row of ``taken`` each of ``rows`` is hidden behind, the nearest one within
+        ``hidden_reach`` (as :meth:`hidden_behind`, whether or not the hold is on); -1 for none.
+
+        >>> import numpy as np
+        >>> life = Lifecycle.__new__(Lifecycle)
+        >>> life.settings = LifecycleSettings()
+        >>> life.size = np.array([20.0, 20.0])
+        >>> taken = np.array([[100.0, 100.0], [118.0, 100.0]])
+        >>> life.hidden_behind_which(np.array([0, 1]), np.array([[112.0, 100.0], [160.0, 100.0]]),
+        ...                          taken, np.array([24.0, 24.0])).tolist()
+        [1, -1]
+        """
+        if len(rows) == 0 or len(taken) == 0:
+            return np.full(len(rows), -1, dtype=np.int64)
         distance = np.linalg.norm(predicted[:, None, :] - taken[None, :, :], axis=2)
         own = np.nan_to_num(self.size[rows], nan=0.0)
         reach = self.settings.hidden_reach * np.maximum(own[:, None], taken_sides[None, :])
-        return np.asarray((distance <= reach).any(axis=1), dtype=bool)
+        nearest = np.argmin(np.where(distance <= reach, distance, np.inf), axis=1)
+        within = (distance <= reach).any(axis=1)
+        return np.where(within, nearest, -1).astype(np.int64)
 
     def _left(self, t: int, rows: IntArray, predicted: FloatArray) -> None:
         """``rows`` are predicted outside the image: out of view, expected where they left."""

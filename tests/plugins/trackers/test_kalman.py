@@ -106,3 +106,43 @@ def test_a_target_whose_detection_turns_into_someone_else_is_lost() -> None:
     # Lost at the second unlike crop (0.2 s after the first), and not re-taken: it looks unlike.
     assert 14 <= first_lost <= 16
     assert all(status == "lost" for status in statuses[first_lost:])
+
+
+def _two_people(frame: int) -> np.ndarray:
+    """Red person at x 300 and green one at x 390 until frame 6; then only the green one, at 300."""
+    image = np.zeros((720, 1280, 3), dtype=np.uint8)
+    noise = np.random.default_rng(frame).integers(100, 255, size=(720, 1280))
+    if frame < 6:
+        image[200:400, 250:345, 2] = 200
+        image[200:400, 345:440, 1] = noise[200:400, 345:440]
+    else:
+        image[200:400, 250:350, 1] = noise[200:400, 250:350]
+    return image
+
+
+@pytest.mark.parametrize("margin", [None, 0.1])
+def test_a_target_hidden_behind_a_detection_that_looks_like_it_takes_it(
+    margin: float | None,
+) -> None:
+    # The green person steps onto the red one's place as the red one vanishes: the Hungarian
+    # gives the single detection to the red target, whose prediction lies on it; the green
+    # target's prediction is within one head side of it, and only by look can it claim it.
+    params = {
+        "gate_px_at_1080": 300.0,
+        "lifecycle": {"hidden_hold_s": 0.5},
+        "appearance": {"descriptor": "patch", "refresh_s": 0.04, "contest_margin": margin},
+    }
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    tracker.see(_two_people(0))
+    tracker.initialise(0, np.array([1, 2]), np.array([[300.0, 300.0], [390.0, 300.0]]))
+    for t in range(10):
+        points = np.array([[300.0, 300.0], [390.0, 300.0]]) if t < 6 else np.array([[300.0, 300.0]])
+        boxes = np.column_stack([points - 45.0, np.full((len(points), 2), 90.0)])
+        tracker.see(_two_people(t))
+        tracker.step(t, Detections.from_points(points, boxes=boxes))
+        matched = [state.matched_detection for state in tracker.states()]
+        if t < 6:
+            assert matched == [0, 1], t
+        else:
+            assert matched == ([0, -1] if margin is None else [-1, 0]), t
