@@ -16,7 +16,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from trackfw.arrays import BoolArray, FloatArray, IntArray, UInt8Array
+from trackfw.arrays import FloatArray, IntArray, UInt8Array
 from trackfw.records import (
     LOST,
     NO_MATCH,
@@ -39,6 +39,7 @@ from trackfw_plugins.maths.tps_rpm import match_points
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 from trackfw_plugins.trackers.appearance_memory import AppearanceMemory, AppearanceSettings
 from trackfw_plugins.trackers.lifecycle import Lifecycle, LifecycleSettings
+from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio, stands_out
 
 
 def box_sides(detections: Detections) -> FloatArray:
@@ -65,46 +66,6 @@ LOOK_ANYWHERE_PERIOD_S = 0.2
 #: Beyond the usual gate a not yet seen target takes only a detection at most this times as far
 #: as the next one.
 START_NEARER_RATIO = 1.0 / 3.0
-
-
-def _with_second_nearest(look: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """``look`` with NaN as infinity, and ``(M,)`` each row's second smallest (inf if none)."""
-    known = np.where(np.isnan(look), np.inf, look)
-    second = np.sort(known, axis=1)[:, 1] if look.shape[1] > 1 else np.full(len(look), np.inf)
-    return known, second
-
-
-def stands_out(look: FloatArray, margin: float) -> BoolArray:
-    """``(M, N)``: where detection n is nearer in look to target m than every other one by ``margin``.
-
-    ``look`` is ``(M, N)`` appearance distances over every detection of the frame (NaN: nothing
-    known, never stands out). A bystander rarely stands out from the rest of a crowd that clearly,
-    so a match by look alone, with no place to check it against, asks for this.
-
-    >>> stands_out(np.array([[0.1, 0.4, 0.5], [0.40, 0.45, 0.9]]), 0.15).tolist()
-    [[True, False, False], [False, False, False]]
-    >>> stands_out(np.array([[np.nan, np.nan]]), 0.15).tolist()
-    [[False, False]]
-    """
-    known, second = _with_second_nearest(look)
-    return np.isfinite(known) & (known + margin <= second[:, None])
-
-
-def nearer_by_ratio(look: FloatArray, ratio: float) -> BoolArray:
-    """``(M, N)``: where detection n's distance to target m (in look, or in pixels) is at most
-    ``ratio`` times the next nearest detection's (a ratio test, as in feature matching; NaN
-    never qualifies).
-
-    Scale-free, unlike :func:`stands_out`: person re-ID distances between the rendered people
-    of the synth preset are several times smaller than between TUD heads.
-
-    >>> nearer_by_ratio(np.array([[0.06, 0.53, 0.6], [0.44, 0.45, 0.5]]), 0.8).tolist()
-    [[True, False, False], [False, False, False]]
-    >>> nearer_by_ratio(np.array([[np.nan, np.nan], [0.3, np.nan]]), 0.8).tolist()
-    [[False, False], [True, False]]
-    """
-    known, second = _with_second_nearest(look)
-    return np.isfinite(known) & (known <= ratio * second[:, None])
 
 
 class KalmanTrackerParams(StageParams):
@@ -235,13 +196,13 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         life = self.life
         active, inactive = life.active(), life.inactive()
         rows = self.associate(self.bank.positions[active], detections, active)
-        rows = self._contest(active, rows, detections)
+        sides = box_sides(detections)
+        rows = self._contest(active, rows, detections, detections.points, sides)
         hit = rows >= 0
         targets, taken = active[hit], rows[hit]
         self.bank.correct(targets, detections.points[taken])
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
         self.matched[targets] = detections.index[taken]
-        sides = box_sides(detections)
         life.supported(t, targets, self.bank.positions[targets], sides[taken])
         swapped = self.memory.remember(t, self.image, targets, detections, taken)
         if len(swapped):
@@ -255,7 +216,14 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         found, columns = self._reacquire(t, detections, inactive, targets, taken)
         life.supported(t, found, self.bank.positions[found], sides[columns])
 
-    def _contest(self, active: IntArray, rows: IntArray, detections: Detections) -> IntArray:
+    def _contest(
+        self,
+        active: IntArray,
+        rows: IntArray,
+        detections: Detections,
+        points: FloatArray,
+        sides: FloatArray,
+    ) -> IntArray:
         """Give a detection to the target hidden behind it when it looks more like that one.
 
         Two people crossing give one detection; the Hungarian hands it to whichever prediction
@@ -268,45 +236,33 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         embedder than a fixed limit: on crowded low-resolution footage the same person a second
         later and another person overlap in distance, but rarely in order.
 
+        ``points`` and ``sides`` are the detections' ``(N, 2)`` points and ``(N,)`` box sides.
+
         Returns:
-            ``rows`` with the contested detections moved (a copy when any moved).
+            ``rows`` with the contested detections moved (:func:`hand_over`).
         """
         margin = self.params.appearance.contest_margin
         hit = rows >= 0
-        if margin is None or self.image is None or not self.memory.active or hit.all():
+        if margin is None or self.image is None or not self.memory.active:
             return rows
-        if not hit.any():
+        if hit.all() or not hit.any():
             return rows
-        holders, taken = np.flatnonzero(hit), rows[hit]
-        missing = np.flatnonzero(~hit)
+        holders, missing = np.flatnonzero(hit), np.flatnonzero(~hit)
+        taken = rows[holders]
         behind = self.life.hidden_behind_which(
-            active[missing],
-            self.bank.positions[active[missing]],
-            detections.points[taken],
-            box_sides(detections)[taken],
+            active[missing], self.bank.positions[active[missing]], points[taken], sides[taken]
         )
-        contested = behind >= 0
-        if not contested.any():
+        hidden = behind >= 0
+        claimants, held_by = missing[hidden], holders[behind[hidden]]
+        if len(claimants) == 0:
             return rows
-        missing, behind = missing[contested], behind[contested]
-        columns = np.unique(taken[behind])
-        targets = np.concatenate([active[missing], active[holders[behind]]])
+        columns = np.unique(rows[held_by])
+        targets = np.concatenate([active[claimants], active[held_by]])
         look = self.memory.looks(self.image, targets, detections, columns)
-        column_of = {int(column): index for index, column in enumerate(columns)}
-        claims = []
-        for number, (row, holder) in enumerate(zip(missing, holders[behind], strict=True)):
-            column = column_of[int(rows[holder])]
-            own, held = look[number, column], look[len(missing) + number, column]
-            if np.isfinite(own) and np.isfinite(held) and own + margin < held:
-                claims.append((held - own, int(row), int(holder)))
-        if not claims:
-            return rows
-        rows = rows.copy()
-        # The clearest claim first; a detection changes hands once.
-        for _, claimant, held_by in sorted(claims, reverse=True):
-            if rows[held_by] >= 0 and rows[claimant] < 0:
-                rows[claimant], rows[held_by] = rows[held_by], NO_MATCH
-        return rows
+        pairs = np.arange(len(claimants))
+        column = np.searchsorted(columns, rows[held_by])
+        own, theirs = look[pairs, column], look[len(claimants) + pairs, column]
+        return hand_over(rows, claimants, held_by, own, theirs, margin)
 
     def _compensate(self, detections: Detections) -> None:
         """Warp the filters by the camera motion from the previous frame (when it registers)."""

@@ -286,9 +286,9 @@ class Lifecycle:
         distance = np.linalg.norm(predicted[:, None, :] - taken[None, :, :], axis=2)
         own = np.nan_to_num(self.size[rows], nan=0.0)
         reach = self.settings.hidden_reach * np.maximum(own[:, None], taken_sides[None, :])
-        nearest = np.argmin(np.where(distance <= reach, distance, np.inf), axis=1)
-        within = (distance <= reach).any(axis=1)
-        return np.where(within, nearest, -1).astype(np.int64)
+        reachable = np.where(distance <= reach, distance, np.inf)
+        nearest = np.argmin(reachable, axis=1)
+        return np.where(np.isfinite(reachable[np.arange(len(rows)), nearest]), nearest, -1)
 
     def _left(self, t: int, rows: IntArray, predicted: FloatArray) -> None:
         """``rows`` are predicted outside the image: out of view, expected where they left."""
