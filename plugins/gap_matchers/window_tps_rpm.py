@@ -3,8 +3,10 @@
 For every candidate prediction U_k (AR orders 1..3 by default), every 4-point window W of the
 detections on frame b is matched to U_k with TPS-RPM; the cost
 psi = bending energy + lambda1 (|U| - d_W) + lambda2 E_a picks the window, and the order with the
-smallest cost wins. Unmatched targets are placed by the window's TPS map. The maths lives in
-:mod:`trackfw_plugins.maths.window_association`; this module wires the predictor, the
+smallest cost wins. Unmatched targets are placed by the window's TPS map. With ``look_margin``
+(ours), the one-to-one assignment on appearance alone overrules a chosen window whose pairs look
+much less alike than that assignment's (docs/algorithms/gap-matchers.md#look-check). The maths
+lives in :mod:`trackfw_plugins.maths.window_association`; this module wires the predictor, the
 appearance term and the records.
 """
 
@@ -25,9 +27,15 @@ from trackfw_plugins.maths.appearance import (
     appearance_distance_matrix,
     patch_descriptor,
 )
+from trackfw_plugins.maths.assignment import hungarian
 from trackfw_plugins.maths.candidate_windows import WindowSet
 from trackfw_plugins.maths.gated_association import associate_gated
-from trackfw_plugins.maths.person_reid import PersonReidEmbedder, body_boxes, detection_rows
+from trackfw_plugins.maths.person_reid import (
+    PersonReidEmbedder,
+    body_boxes,
+    detection_rows,
+    nearest_rows,
+)
 from trackfw_plugins.maths.reid_crop import crop_box
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 from trackfw_plugins.maths.window_association import (
@@ -78,6 +86,13 @@ class WindowTpsRpmParams(StageParams, WindowAssociationParams):
         description="appearance_region person-reid: embedder '0287' (shipped), '0248' (shipped,"
         " smaller) or an ONNX path",
     )
+    look_margin: float | None = Field(
+        None,
+        ge=0,
+        description="when the chosen match's mean appearance distance exceeds that of the best "
+        "one-to-one appearance assignment by more than this, the pattern was found on other "
+        "people and the appearance assignment is the answer; None = the paper's rule (ours)",
+    )
 
 
 def _head_sizes(
@@ -103,6 +118,32 @@ def _body_descriptors(image: np.ndarray, points: FloatArray, sizes: FloatArray) 
     return np.array([patch_descriptor(patch) for patch in patches]).reshape(len(patches), -1)
 
 
+def target_embeddings(
+    problem: GapProblem, embedder: PersonReidEmbedder, fallback_size: float
+) -> FloatArray:
+    """``(K, D)`` person re-ID embeddings of the targets before the interval.
+
+    A target that a detection supported on frame a is described there. One that none did was
+    only predicted on a, which is often already turning away (the classifier saw the interval
+    a few frames late): it is described on the look-back frame instead, where the problem
+    carries its tracked position and the frame's detections, when there is one.
+    """
+    assert problem.frame_a is not None
+    matched_at_a = [state.matched_detection for state in problem.states]
+    rows_a = detection_rows(problem.detections_a, matched_at_a)
+    boxes_a = body_boxes(problem.positions_at_a, problem.detections_a, rows_a, fallback_size)
+    embeddings = embedder.describe(problem.frame_a, boxes_a)
+    lookback = problem.lookback
+    unmatched = np.array([index == NO_MATCH for index in matched_at_a], dtype=bool)
+    if lookback is None or lookback.image is None or not unmatched.any():
+        return embeddings
+    points = lookback.positions[unmatched]
+    rows = nearest_rows(points, lookback.detections)
+    boxes = body_boxes(points, lookback.detections, rows, fallback_size)
+    embeddings[unmatched] = embedder.describe(lookback.image, boxes)
+    return embeddings
+
+
 def appearance_matrix(
     problem: GapProblem, params: WindowTpsRpmParams, embedder: PersonReidEmbedder | None = None
 ) -> FloatArray | None:
@@ -116,13 +157,6 @@ def appearance_matrix(
     scale = problem.video.height / 1080.0
     if embedder is not None:
         fallback = params.patch_at_1080 * scale / 2
-        matched_at_a = [state.matched_detection for state in problem.states]
-        boxes_a = body_boxes(
-            problem.positions_at_a,
-            problem.detections_a,
-            detection_rows(problem.detections_a, matched_at_a),
-            fallback,
-        )
         boxes_b = body_boxes(
             problem.detections.points,
             problem.detections,
@@ -130,7 +164,8 @@ def appearance_matrix(
             fallback,
         )
         return appearance_distance_matrix(
-            embedder.describe(problem.frame_a, boxes_a), embedder.describe(problem.frame_b, boxes_b)
+            target_embeddings(problem, embedder, fallback),
+            embedder.describe(problem.frame_b, boxes_b),
         )
     if params.appearance_region == "body":
         fallback = params.patch_at_1080 * scale / 2
@@ -213,6 +248,60 @@ def free_cost_bound(
     return lambda3 + min(params.lambda1 * count, matched)
 
 
+def look_check(
+    window_rows: IntArray, appearance: FloatArray, margin: float
+) -> tuple[IntArray | None, dict[str, Any]]:
+    """Whether the look overrules the pattern's match, and the record of the check.
+
+    ``window_rows`` ``(K,)`` are the detections (columns of the ``(K, N)`` ``appearance``
+    distances) the chosen window matched, -1 for none. When the mean distance of those pairs
+    exceeds the mean of the best one-to-one assignment on appearance alone by more than
+    ``margin``, the pattern was found on other people: the assignment's ``(K,)`` rows are
+    returned (-1 where it leaves a target out), else None.
+
+    >>> distances = np.array([[0.2, 0.9, 0.8], [0.9, 0.3, 0.8]])
+    >>> look_check(np.array([0, 1]), distances, 0.1)[0] is None
+    True
+    >>> look_check(np.array([2, 0]), distances, 0.1)[0].tolist()
+    [0, 1]
+    """
+    matched = np.flatnonzero(window_rows >= 0)
+    rows = hungarian(appearance)
+    assigned = np.flatnonzero(rows >= 0)
+    if not matched.size or not assigned.size:
+        return None, {"overruled": False}
+    window = float(appearance[matched, window_rows[matched]].mean())
+    best = float(appearance[assigned, rows[assigned]].mean())
+    overruled = window - best > margin
+    record = {"window": round(window, 6), "assignment": round(best, 6), "overruled": overruled}
+    return (rows if overruled else None), record
+
+
+def candidate_records(
+    candidates: Sequence[Prediction],
+    results: Sequence[WindowAssociationResult],
+    evidence: Sequence[float],
+    detections: Detections,
+) -> dict[str, Any]:
+    """gaps.json's record of every candidate: its cost terms, window and diagnostics."""
+    records: dict[str, Any] = {}
+    for index, (candidate, result) in enumerate(zip(candidates, results, strict=True)):
+        record: dict[str, Any] = {
+            "cost": round(float(result.cost), 6),
+            "bending": round(float(result.bending), 6),
+            "unmatched": int(result.unmatched),
+            "appearance": round(float(result.appearance), 6),
+            "window": [int(detections.index[i]) for i in result.window],
+            "counts": asdict(result.diagnostics),
+            "predictor": candidate.diagnostics,
+        }
+        if candidate.gate is not None:
+            record["gate_px"] = round(float(candidate.gate), 3)
+            record["position_evidence"] = round(evidence[index], 6)
+        records[candidate.label] = record
+    return records
+
+
 class WindowTpsRpmGapMatcher(GapMatcher[WindowTpsRpmParams]):
     """AR prediction + window-based TPS-RPM matching of the group's spatial pattern (the paper's method)."""
 
@@ -250,35 +339,36 @@ class WindowTpsRpmGapMatcher(GapMatcher[WindowTpsRpmParams]):
         best = select_candidate(results)
         result = results[best]
         rows = result.matched_detection
+        positions = np.asarray(result.positions, dtype=np.float64)
+        chosen = candidates[best].label
+        look: dict[str, Any] | None = None
+        if params.look_margin is not None and appearance is not None:
+            overruling, look = look_check(rows, appearance, params.look_margin)
+            if overruling is not None:
+                # Targets the look leaves out (fewer detections than targets) stay where the
+                # chosen candidate placed them.
+                look["overruled_candidate"] = chosen
+                rows = overruling
+                positions = np.where(
+                    (rows >= 0)[:, None], detections.points[np.maximum(rows, 0)], positions
+                )
+                chosen = "look"
         matched = np.where(
             rows >= 0,
             detections.index[np.maximum(rows, 0)] if len(detections) else NO_MATCH,
             NO_MATCH,
         )
-        per_candidate: dict[str, Any] = {}
-        for index, (candidate, candidate_result) in enumerate(
-            zip(candidates, results, strict=True)
-        ):
-            per_candidate[candidate.label] = {
-                "cost": round(float(candidate_result.cost), 6),
-                "bending": round(float(candidate_result.bending), 6),
-                "unmatched": int(candidate_result.unmatched),
-                "appearance": round(float(candidate_result.appearance), 6),
-                "window": [int(detections.index[i]) for i in candidate_result.window],
-                "counts": asdict(candidate_result.diagnostics),
-                "predictor": candidate.diagnostics,
-            }
-            if candidate.gate is not None:
-                per_candidate[candidate.label]["gate_px"] = round(float(candidate.gate), 3)
-                per_candidate[candidate.label]["position_evidence"] = round(evidence[index], 6)
+        diagnostics: dict[str, Any] = {
+            "fallback": result.diagnostics.fallback,
+            "candidates": candidate_records(candidates, results, evidence, detections),
+            "appearance_used": appearance is not None,
+        }
+        if look is not None:
+            diagnostics["look_check"] = look
         return GapSolution(
-            positions=np.asarray(result.positions, dtype=np.float64),
+            positions=positions,
             matched_detection=matched.astype(np.int64),
             cost=float(result.cost),
-            chosen=candidates[best].label,
-            diagnostics={
-                "fallback": result.diagnostics.fallback,
-                "candidates": per_candidate,
-                "appearance_used": appearance is not None,
-            },
+            chosen=chosen,
+            diagnostics=diagnostics,
         )

@@ -75,6 +75,26 @@ def detection_rows(detections: Detections | None, indices: ArrayLike) -> IntArra
     return np.array([position.get(int(index), -1) for index in wanted], dtype=np.int64)
 
 
+def nearest_rows(points: ArrayLike, detections: Detections | None) -> IntArray:
+    """Row of the detection nearest each ``(P, 2)`` point, -1 where none lies within its own
+    head size of it (or where there are no detection boxes).
+
+    >>> from trackfw.records import Detections
+    >>> boxes = np.array([[95.0, 95.0, 10.0, 10.0], [195.0, 95.0, 10.0, 10.0]])
+    >>> points = np.array([[100.0, 100.0], [200.0, 100.0]])
+    >>> detections = Detections(points, np.ones(2), boxes=boxes)
+    >>> nearest_rows(np.array([[104.0, 103.0], [150.0, 100.0]]), detections).tolist()
+    [0, -1]
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if detections is None or detections.boxes is None or len(detections) == 0:
+        return np.full(len(points), -1, dtype=np.int64)
+    distances = np.linalg.norm(points[:, None, :] - detections.points[None, :, :], axis=2)
+    nearest = distances.argmin(axis=1) if len(points) else np.zeros(0, dtype=np.int64)
+    within = distances[np.arange(len(points)), nearest] <= head_sizes_of(detections.boxes)[nearest]
+    return np.where(within, nearest, -1).astype(np.int64)
+
+
 def body_boxes(
     points: ArrayLike,
     detections: Detections | None,

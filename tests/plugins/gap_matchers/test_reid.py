@@ -9,6 +9,7 @@ from trackfw.records import (
     Detections,
     GapProblem,
     Interval,
+    LookBack,
     Prediction,
     TargetState,
     VideoContext,
@@ -111,3 +112,90 @@ def test_reid_scores_every_candidate_and_keeps_the_one_that_finds_the_undetected
     costs = solution.diagnostics["candidates"]
     assert set(costs) == {"ar1", "ar2"} and costs["ar2"] < costs["ar1"]
     assert solution.cost == pytest.approx(costs["ar2"], abs=1e-6)
+
+
+def test_window_tps_rpm_look_check_overrules_a_pattern_found_on_other_people() -> None:
+    # At b, four other people stand exactly in the targets' pattern of frame a, while the targets
+    # themselves have regrouped elsewhere: the pattern alone picks the wrong people.
+    bystanders = AT_A + np.array([10.0, 150.0])
+    targets_at_b = np.array([[430.0, 20.0], [560.0, 40.0], [470.0, 130.0], [600.0, 120.0]])
+    others = [(150, 60, 200), (60, 200, 200), (250, 250, 250), (120, 120, 120)]
+    points = np.vstack([targets_at_b, bystanders])
+    problem = _problem(targets_at_b, COLOURS)
+    problem.detections = Detections.from_points(points)
+    problem.frame_b = _frame(points, COLOURS + others, 2)
+    registry = load_registry()
+    params = {"appearance_region": "person-reid", "predictor": {"type": "ar"}}
+    pattern = registry.build_stage("gap_matcher", {"type": "window-tps-rpm", "params": params})
+    assert pattern.match(problem).matched_detection.tolist() == [4, 5, 6, 7]
+    checked = registry.build_stage(
+        "gap_matcher",
+        {"type": "window-tps-rpm", "params": {**params, "look_margin": 0.1}},
+    )
+    solution = checked.match(problem)
+    assert solution.matched_detection.tolist() == [0, 1, 2, 3]
+    assert np.allclose(solution.positions, targets_at_b)
+    look = solution.diagnostics["look_check"]
+    assert solution.chosen == "look" and look["overruled"] and look["overruled_candidate"] == "ar1"
+    assert look["window"] - look["assignment"] > 0.1
+
+
+def test_window_tps_rpm_look_check_keeps_a_pattern_the_look_agrees_with() -> None:
+    at_b = AT_A + np.array([30.0, 20.0])
+    problem = _problem(at_b, COLOURS)
+    matcher = load_registry().build_stage(
+        "gap_matcher",
+        {
+            "type": "window-tps-rpm",
+            "params": {"appearance_region": "person-reid", "look_margin": 0.1},
+        },
+    )
+    solution = matcher.match(problem)
+    assert solution.matched_detection.tolist() == [0, 1, 2, 3]
+    assert solution.chosen == "ar1" and not solution.diagnostics["look_check"]["overruled"]
+
+
+def _with_look_back(problem: GapProblem, colours: list[tuple[int, int, int]]) -> GapProblem:
+    """``problem`` with a look-back frame on which the targets at ``AT_A`` wear ``colours``."""
+    problem.lookback = LookBack(
+        t=0,
+        image=_frame(AT_A, colours, 3),
+        detections=Detections.from_points(AT_A),
+        positions=AT_A.copy(),
+    )
+    return problem
+
+
+def test_window_tps_rpm_describes_a_target_unmatched_at_a_on_the_look_back_frame() -> None:
+    from trackfw_plugins.gap_matchers.window_tps_rpm import appearance_matrix
+
+    order = [2, 0, 3, 1]
+    at_b = np.array([[150.0, 120.0], [300.0, 110.0], [420.0, 130.0], [560.0, 100.0]])
+    problem = _with_look_back(_problem(at_b, [COLOURS[i] for i in order]), COLOURS)
+    # Frame a is already turned away: nobody is where the targets were predicted.
+    problem.frame_a = np.random.default_rng(4).integers(90, 110, (360, 640, 3)).astype(np.uint8)
+    matcher = load_registry().build_stage(
+        "gap_matcher", {"type": "window-tps-rpm", "params": {"appearance_region": "person-reid"}}
+    )
+    distances = appearance_matrix(problem, matcher.params, matcher.embedder)
+    assert distances is not None
+    assert distances.argmin(axis=1).tolist() == [order.index(i) for i in range(4)]
+
+
+def test_window_tps_rpm_describes_a_target_matched_at_a_on_frame_a() -> None:
+    from trackfw_plugins.gap_matchers.window_tps_rpm import appearance_matrix
+
+    order = [2, 0, 3, 1]
+    at_b = np.array([[150.0, 120.0], [300.0, 110.0], [420.0, 130.0], [560.0, 100.0]])
+    # On the look-back frame the targets wear each other's colours; frame a is what counts.
+    problem = _with_look_back(_problem(at_b, [COLOURS[i] for i in order]), COLOURS[::-1])
+    problem.detections_a = Detections.from_points(AT_A)
+    problem.states = [
+        TargetState(i + 1, p, np.zeros(2), matched_detection=i) for i, p in enumerate(AT_A)
+    ]
+    matcher = load_registry().build_stage(
+        "gap_matcher", {"type": "window-tps-rpm", "params": {"appearance_region": "person-reid"}}
+    )
+    distances = appearance_matrix(problem, matcher.params, matcher.embedder)
+    assert distances is not None
+    assert distances.argmin(axis=1).tolist() == [order.index(i) for i in range(4)]
