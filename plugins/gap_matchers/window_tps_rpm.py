@@ -132,15 +132,20 @@ def target_embeddings(
     matched_at_a = [state.matched_detection for state in problem.states]
     rows_a = detection_rows(problem.detections_a, matched_at_a)
     boxes_a = body_boxes(problem.positions_at_a, problem.detections_a, rows_a, fallback_size)
-    embeddings = embedder.describe(problem.frame_a, boxes_a)
     lookback = problem.lookback
-    unmatched = np.array([index == NO_MATCH for index in matched_at_a], dtype=bool)
-    if lookback is None or lookback.image is None or not unmatched.any():
-        return embeddings
-    points = lookback.positions[unmatched]
+    earlier = np.array([index == NO_MATCH for index in matched_at_a], dtype=bool)
+    if lookback is None or lookback.image is None or not earlier.any():
+        return embedder.describe(problem.frame_a, boxes_a)
+    # Each target is embedded once: on frame a or on the look-back frame.
+    points = lookback.positions[earlier]
     rows = nearest_rows(points, lookback.detections)
-    boxes = body_boxes(points, lookback.detections, rows, fallback_size)
-    embeddings[unmatched] = embedder.describe(lookback.image, boxes)
+    on_lookback = embedder.describe(
+        lookback.image, body_boxes(points, lookback.detections, rows, fallback_size)
+    )
+    embeddings = np.zeros((len(matched_at_a), on_lookback.shape[1]), dtype=on_lookback.dtype)
+    embeddings[earlier] = on_lookback
+    if not earlier.all():
+        embeddings[~earlier] = embedder.describe(problem.frame_a, boxes_a[~earlier])
     return embeddings
 
 

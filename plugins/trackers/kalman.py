@@ -197,7 +197,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         active, inactive = life.active(), life.inactive()
         rows = self.associate(self.bank.positions[active], detections, active)
         sides = box_sides(detections)
-        rows = self._contest(active, rows, detections, detections.points, sides)
+        rows = self._contest(active, rows, detections, sides)
         hit = rows >= 0
         targets, taken = active[hit], rows[hit]
         self.bank.correct(targets, detections.points[taken])
@@ -221,7 +221,6 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         active: IntArray,
         rows: IntArray,
         detections: Detections,
-        points: FloatArray,
         sides: FloatArray,
     ) -> IntArray:
         """Give a detection to the target hidden behind it when it looks more like that one.
@@ -236,7 +235,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         embedder than a fixed limit: on crowded low-resolution footage the same person a second
         later and another person overlap in distance, but rarely in order.
 
-        ``points`` and ``sides`` are the detections' ``(N, 2)`` points and ``(N,)`` box sides.
+        ``sides`` are the detections' ``(N,)`` box sides.
 
         Returns:
             ``rows`` with the contested detections moved (:func:`hand_over`).
@@ -250,7 +249,10 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         holders, missing = np.flatnonzero(hit), np.flatnonzero(~hit)
         taken = rows[holders]
         behind = self.life.hidden_behind_which(
-            active[missing], self.bank.positions[active[missing]], points[taken], sides[taken]
+            active[missing],
+            self.bank.positions[active[missing]],
+            detections.points[taken],
+            sides[taken],
         )
         hidden = behind >= 0
         claimants, held_by = missing[hidden], holders[behind[hidden]]
