@@ -28,6 +28,11 @@ by default in :class:`OnlineRules` (paper behaviour) and set by the shipped mode
   ``C_t`` should compare with the scene it came back to, not with the one before the turn. This is meant for "another group" intervals: once the camera
   rests on the other group, ``M`` is low and ``N`` steady, and the SVM's probability falls as
   soon as ``C_t`` is small, after which the reference would move into the interval.
+* **No people, no way out**: an interval is not left on a frame with fewer than
+  ``leave_min_detections`` detections. A camera resting on the sky has a low ``M`` and no
+  people, and the SVM's probability can fall below the leave threshold there; the frame would
+  become the reference of ``C_t`` with ``S_a = 0``, which pins ``C_t`` at ``C_max`` on every
+  frame after the camera is back, and the video stays info-less to its end.
 
 All depend only on the past, so the stage stays strictly online.
 """
@@ -64,6 +69,8 @@ class OnlineRules:
             is still info-less with at least ``reanchor_min_detections`` people, it becomes
             the reference of ``C_t``.
         latch_late_turns: an interval that began without a turn latches on its first turn.
+        leave_min_detections: an info-less state stays info-less on a frame with fewer
+            detections than this (0: the probability alone decides).
     """
 
     enter_probability: float = 0.5
@@ -75,6 +82,7 @@ class OnlineRules:
     max_hold: int = 300
     reanchor_on_release: bool = True
     latch_late_turns: bool = True
+    leave_min_detections: int = 0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.leave_probability <= self.enter_probability <= 1.0:
@@ -89,10 +97,9 @@ class OnlineRules:
                 f"expected max_hold >= 0 and turn_motion > 0, got {self.max_hold} and"
                 f" {self.turn_motion}"
             )
-        if self.reanchor_min_detections < 0:
-            raise ValueError(
-                f"reanchor_min_detections must be >= 0, got {self.reanchor_min_detections}"
-            )
+        for name in ("reanchor_min_detections", "leave_min_detections"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if not self.reanchor_max_motion >= 0:
             raise ValueError(f"reanchor_max_motion must be >= 0, got {self.reanchor_max_motion}")
 
@@ -129,6 +136,7 @@ class OnlineRules:
                 max_hold=int(values.get("max_hold", 300)),
                 reanchor_on_release=bool(values.get("reanchor_on_release", True)),
                 latch_late_turns=bool(values.get("latch_late_turns", True)),
+                leave_min_detections=int(values.get("leave_min_detections", 0)),
             )
         except (TypeError, ValueError) as error:
             raise UserError(f"{source}: online_rules: {error}.") from None
@@ -195,6 +203,12 @@ class OnlineDecider:
             self._held += 1
             self._released = was_holding and self._turns_ended >= 2
         if self.holding:
+            return True
+        if (
+            self.inside
+            and features is not None
+            and float(features[2 * HISTORY - 1]) < self.rules.leave_min_detections
+        ):
             return True
         limit = self.rules.leave_probability if self.inside else self.rules.enter_probability
         return probability >= limit

@@ -158,6 +158,12 @@ class SvmParams(StageParams):
         description="An interval begun without a turn latches on its first turn; empty for the"
         " model's own (true if it records none).",
     )
+    leave_min_detections: int | None = Field(
+        default=None,
+        ge=0,
+        description="An interval is not left on a frame with fewer detections than this (OURS);"
+        " empty for the model's own (0, the probability alone, if it records none).",
+    )
     reanchor_min_detections: int | None = Field(
         default=None,
         ge=0,
@@ -245,6 +251,7 @@ def resolve_online_rules(model: SvmModel, params: Any, source: str = SHIPPED_MOD
             "max_hold",
             "reanchor_on_release",
             "latch_late_turns",
+            "leave_min_detections",
         )
         if getattr(params, name) is not None
     }
