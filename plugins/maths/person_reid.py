@@ -30,6 +30,7 @@ from trackfw.formats import HEAD_SIZE_FRACTION
 from trackfw.records import Detections
 from trackfw_plugins.detectors.boxes import body_boxes_from_heads
 from trackfw_plugins.detectors.head_scorer import resolve_threads
+from trackfw_plugins.maths.assignment import distance_matrix
 from trackfw_plugins.maths.reid_crop import crop_box
 
 #: Shipped embedders by name.
@@ -89,7 +90,7 @@ def nearest_rows(points: ArrayLike, detections: Detections | None) -> IntArray:
     points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if detections is None or detections.boxes is None or len(detections) == 0:
         return np.full(len(points), -1, dtype=np.int64)
-    distances = np.linalg.norm(points[:, None, :] - detections.points[None, :, :], axis=2)
+    distances = distance_matrix(points, detections.points)
     nearest = distances.argmin(axis=1) if len(points) else np.zeros(0, dtype=np.int64)
     within = distances[np.arange(len(points)), nearest] <= head_sizes_of(detections.boxes)[nearest]
     return np.where(within, nearest, -1).astype(np.int64)
