@@ -19,7 +19,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field
 
-from trackfw.arrays import FloatArray, IntArray
+from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw.records import NO_MATCH, Detections, GapProblem, GapSolution, Prediction
 from trackfw.stages import GapMatcher, Stage, StageParams
 from trackfw_plugins.maths.appearance import (
@@ -92,6 +92,13 @@ class WindowTpsRpmParams(StageParams, WindowAssociationParams):
         description="when the chosen match's mean appearance distance exceeds that of the best "
         "one-to-one appearance assignment by more than this, the pattern was found on other "
         "people and the appearance assignment is the answer; None = the paper's rule (ours)",
+    )
+    look_region: float | None = Field(
+        None,
+        ge=0,
+        description="with look_margin: the appearance assignment takes only detections within "
+        "the chosen match's bounding box grown on every side by this many times its larger "
+        "side; None = anywhere in frame b (ours)",
     )
 
 
@@ -253,8 +260,30 @@ def free_cost_bound(
     return lambda3 + min(params.lambda1 * count, matched)
 
 
+def region_columns(points: FloatArray, rows: IntArray, grow: float) -> BoolArray:
+    """``(N,)`` detections within the bounding box of ``points[rows]`` grown by ``grow`` sides.
+
+    The box is grown on every side by ``grow`` times its larger side (at least one pixel, so
+    that a single matched head still has a region).
+
+    >>> points = np.array([[0.0, 0.0], [10.0, 0.0], [14.0, 0.0], [30.0, 0.0]])
+    >>> region_columns(points, np.array([0, 1, -1]), 0.5).tolist()
+    [True, True, True, False]
+    """
+    held = rows[rows >= 0]
+    if not held.size:
+        return np.ones(len(points), dtype=bool)
+    low, high = points[held].min(axis=0), points[held].max(axis=0)
+    margin = max(grow * float((high - low).max()), 1.0)
+    inside = (points >= low - margin) & (points <= high + margin)
+    return np.asarray(inside.all(axis=1), dtype=bool)
+
+
 def look_check(
-    window_rows: IntArray, appearance: FloatArray, margin: float
+    window_rows: IntArray,
+    appearance: FloatArray,
+    margin: float,
+    allowed: BoolArray | None = None,
 ) -> tuple[IntArray | None, dict[str, Any]]:
     """Whether the look overrules the pattern's match, and the record of the check.
 
@@ -262,7 +291,8 @@ def look_check(
     distances) the chosen window matched, -1 for none. When the mean distance of those pairs
     exceeds the mean of the best one-to-one assignment on appearance alone by more than
     ``margin``, the pattern was found on other people: the assignment's ``(K,)`` rows are
-    returned (-1 where it leaves a target out), else None.
+    returned (-1 where it leaves a target out), else None. ``allowed`` ``(N,)`` limits the
+    assignment to those detections.
 
     >>> distances = np.array([[0.2, 0.9, 0.8], [0.9, 0.3, 0.8]])
     >>> look_check(np.array([0, 1]), distances, 0.1)[0] is None
@@ -271,7 +301,12 @@ def look_check(
     [0, 1]
     """
     matched = np.flatnonzero(window_rows >= 0)
-    rows = hungarian(appearance)
+    if allowed is None:
+        rows = hungarian(appearance)
+    else:
+        columns = np.flatnonzero(allowed)
+        rows = hungarian(appearance[:, columns])
+        rows = np.where(rows >= 0, columns[np.maximum(rows, 0)], NO_MATCH)
     assigned = np.flatnonzero(rows >= 0)
     if not matched.size or not assigned.size:
         return None, {"overruled": False}
@@ -348,7 +383,12 @@ class WindowTpsRpmGapMatcher(GapMatcher[WindowTpsRpmParams]):
         chosen = candidates[best].label
         look: dict[str, Any] | None = None
         if params.look_margin is not None and appearance is not None:
-            overruling, look = look_check(rows, appearance, params.look_margin)
+            allowed = (
+                None
+                if params.look_region is None
+                else region_columns(detections.points, rows, params.look_region)
+            )
+            overruling, look = look_check(rows, appearance, params.look_margin, allowed)
             if overruling is not None:
                 # Targets the look leaves out (fewer detections than targets) stay where the
                 # chosen candidate placed them.

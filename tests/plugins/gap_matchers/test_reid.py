@@ -140,6 +140,44 @@ def test_window_tps_rpm_look_check_overrules_a_pattern_found_on_other_people() -
     assert look["window"] - look["assignment"] > 0.1
 
 
+def test_window_tps_rpm_look_region_keeps_the_look_near_the_pattern() -> None:
+    # The scene of the overrule test: with look_region the assignment by look may only use
+    # detections near the chosen window, so the regrouped targets far away are out of its reach.
+    bystanders = AT_A + np.array([10.0, 150.0])
+    targets_at_b = np.array([[430.0, 20.0], [560.0, 40.0], [470.0, 130.0], [600.0, 120.0]])
+    others = [(150, 60, 200), (60, 200, 200), (250, 250, 250), (120, 120, 120)]
+    points = np.vstack([targets_at_b, bystanders])
+    problem = _problem(targets_at_b, COLOURS)
+    problem.detections = Detections.from_points(points)
+    problem.frame_b = _frame(points, COLOURS + others, 2)
+    params = {
+        "appearance_region": "person-reid",
+        "predictor": {"type": "ar"},
+        "look_margin": 0.1,
+        "look_region": 0.25,
+    }
+    matcher = load_registry().build_stage(
+        "gap_matcher", {"type": "window-tps-rpm", "params": params}
+    )
+    solution = matcher.match(problem)
+    assert solution.matched_detection.tolist() == [4, 5, 6, 7]
+    assert solution.chosen == "ar1"
+
+
+def test_look_check_assigns_only_allowed_detections() -> None:
+    from trackfw_plugins.gap_matchers.window_tps_rpm import look_check
+
+    # Target 0 looks most like detection 3, which lies outside the allowed region; within it the
+    # window's pairs (0 -> 0, 1 -> 1) are a swap the look undoes.
+    distances = np.array([[0.5, 0.7, 0.9, 0.1], [0.2, 0.9, 0.9, 0.9]])
+    allowed = np.array([True, True, True, False])
+    rows, record = look_check(np.array([0, 1]), distances, 0.1, allowed)
+    assert rows is not None and rows.tolist() == [1, 0]
+    assert record["overruled"]
+    anywhere, _ = look_check(np.array([0, 1]), distances, 0.1)
+    assert anywhere is not None and anywhere.tolist() == [3, 0]
+
+
 def test_window_tps_rpm_look_check_keeps_a_pattern_the_look_agrees_with() -> None:
     at_b = AT_A + np.array([30.0, 20.0])
     problem = _problem(at_b, COLOURS)
