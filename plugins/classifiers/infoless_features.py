@@ -48,6 +48,21 @@ FEATURE_LAYOUT: tuple[str, ...] = (
 )
 FEATURE_SIZE = len(FEATURE_LAYOUT)
 
+
+def latest_motion(features: FloatArray) -> float:
+    """``M_t``, the current frame's motion, from an ``(11,)`` feature ``x_t``.
+
+    >>> latest_motion(np.arange(11.0)), latest_count(np.arange(11.0))
+    (4.0, 9.0)
+    """
+    return float(features[HISTORY - 1])
+
+
+def latest_count(features: FloatArray) -> float:
+    """``N_t``, the current frame's number of detections, from an ``(11,)`` feature ``x_t``."""
+    return float(features[2 * HISTORY - 1])
+
+
 _DIS_PRESETS: dict[str, int] = {
     "ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
     "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,

@@ -45,7 +45,12 @@ from typing import Any
 
 from trackfw.arrays import FloatArray
 from trackfw.errors import UserError
-from trackfw_plugins.classifiers.infoless_features import HISTORY, FeatureAssembler
+from trackfw_plugins.classifiers.infoless_features import (
+    HISTORY,
+    FeatureAssembler,
+    latest_count,
+    latest_motion,
+)
 
 
 @dataclass(frozen=True)
@@ -193,7 +198,7 @@ class OnlineDecider:
         self._released = False
         if self.inside and features is not None and math.isfinite(self.rules.turn_motion):
             was_holding = self.holding
-            turning = float(features[HISTORY - 1]) >= self.rules.turn_motion
+            turning = latest_motion(features) >= self.rules.turn_motion
             if turning and not self._entry_turn and self.rules.latch_late_turns:
                 # An interval entered without a turn (the SVM was early) latches on its first.
                 self._entry_turn, self._turns_ended, self._held = True, 0, 0
@@ -207,7 +212,7 @@ class OnlineDecider:
         if (
             self.inside
             and features is not None
-            and float(features[2 * HISTORY - 1]) < self.rules.leave_min_detections
+            and latest_count(features) < self.rules.leave_min_detections
         ):
             return True
         limit = self.rules.leave_probability if self.inside else self.rules.enter_probability
@@ -233,7 +238,7 @@ class OnlineDecider:
         if infoless and not self._inside_before:
             # A new interval latches only when it starts during a turn: a turn already over
             # may be the way back of the interval just left.
-            self._entry_turn = float(features[HISTORY - 1]) >= self.rules.turn_motion
+            self._entry_turn = latest_motion(features) >= self.rules.turn_motion
             self._in_turn = self._entry_turn
             self._turns_ended = 0
             self._held = 0
@@ -241,7 +246,7 @@ class OnlineDecider:
             infoless
             and self._released
             and self.rules.reanchor_on_release
-            and float(features[2 * HISTORY - 1]) >= self.rules.reanchor_min_detections
+            and latest_count(features) >= self.rules.reanchor_min_detections
         ):
             # The way back has ended: compare the next frames with the scene we came back to.
             self.assembler.reanchor(t)

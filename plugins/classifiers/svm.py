@@ -49,6 +49,8 @@ from trackfw_plugins.classifiers.infoless_features import (
     DisPreset,
     FlowMethod,
     InfolessFeatureExtractor,
+    latest_count,
+    latest_motion,
 )
 from trackfw_plugins.classifiers.online_rules import OnlineDecider, OnlineRules, model_rules
 from trackfw_plugins.classifiers.svm_model import SvmModel, load_model
@@ -336,9 +338,7 @@ class SvmClassifier(Classifier[SvmParams]):
         self, frame: FrameData, probability: float, infoless: bool, features: FloatArray
     ) -> ClassifierDecision:
         """The decision on ``frame``, with both hindsight revisions (end and start)."""
-        revises = self.hindsight.push(
-            infoless, float(features[HISTORY - 1]), float(features[2 * HISTORY - 1])
-        )
+        revises = self.hindsight.push(infoless, latest_motion(features), latest_count(features))
         onset = self.onset.push(infoless, probability, frame.first or revises > 0)
         return ClassifierDecision(
             probability=probability,

@@ -114,16 +114,24 @@ def test_reid_scores_every_candidate_and_keeps_the_one_that_finds_the_undetected
     assert solution.cost == pytest.approx(costs["ar2"], abs=1e-6)
 
 
-def test_window_tps_rpm_look_check_overrules_a_pattern_found_on_other_people() -> None:
-    # At b, four other people stand exactly in the targets' pattern of frame a, while the targets
-    # themselves have regrouped elsewhere: the pattern alone picks the wrong people.
+REGROUPED_AT_B = np.array([[430.0, 20.0], [560.0, 40.0], [470.0, 130.0], [600.0, 120.0]])
+
+
+def _regrouped_problem() -> GapProblem:
+    """At b, four other people stand exactly in the targets' pattern of frame a (detections 4-7),
+    while the targets themselves have regrouped elsewhere (``REGROUPED_AT_B``, detections 0-3)."""
     bystanders = AT_A + np.array([10.0, 150.0])
-    targets_at_b = np.array([[430.0, 20.0], [560.0, 40.0], [470.0, 130.0], [600.0, 120.0]])
     others = [(150, 60, 200), (60, 200, 200), (250, 250, 250), (120, 120, 120)]
-    points = np.vstack([targets_at_b, bystanders])
-    problem = _problem(targets_at_b, COLOURS)
+    points = np.vstack([REGROUPED_AT_B, bystanders])
+    problem = _problem(REGROUPED_AT_B, COLOURS)
     problem.detections = Detections.from_points(points)
     problem.frame_b = _frame(points, COLOURS + others, 2)
+    return problem
+
+
+def test_window_tps_rpm_look_check_overrules_a_pattern_found_on_other_people() -> None:
+    # The pattern alone picks the wrong people; the look finds the regrouped targets.
+    problem = _regrouped_problem()
     registry = load_registry()
     params = {"appearance_region": "person-reid", "predictor": {"type": "ar"}}
     pattern = registry.build_stage("gap_matcher", {"type": "window-tps-rpm", "params": params})
@@ -134,7 +142,7 @@ def test_window_tps_rpm_look_check_overrules_a_pattern_found_on_other_people() -
     )
     solution = checked.match(problem)
     assert solution.matched_detection.tolist() == [0, 1, 2, 3]
-    assert np.allclose(solution.positions, targets_at_b)
+    assert np.allclose(solution.positions, REGROUPED_AT_B)
     look = solution.diagnostics["look_check"]
     assert solution.chosen == "look" and look["overruled"] and look["overruled_candidate"] == "ar1"
     assert look["window"] - look["assignment"] > 0.1
@@ -143,13 +151,7 @@ def test_window_tps_rpm_look_check_overrules_a_pattern_found_on_other_people() -
 def test_window_tps_rpm_look_region_keeps_the_look_near_the_pattern() -> None:
     # The scene of the overrule test: with look_region the assignment by look may only use
     # detections near the chosen window, so the regrouped targets far away are out of its reach.
-    bystanders = AT_A + np.array([10.0, 150.0])
-    targets_at_b = np.array([[430.0, 20.0], [560.0, 40.0], [470.0, 130.0], [600.0, 120.0]])
-    others = [(150, 60, 200), (60, 200, 200), (250, 250, 250), (120, 120, 120)]
-    points = np.vstack([targets_at_b, bystanders])
-    problem = _problem(targets_at_b, COLOURS)
-    problem.detections = Detections.from_points(points)
-    problem.frame_b = _frame(points, COLOURS + others, 2)
+    problem = _regrouped_problem()
     params = {
         "appearance_region": "person-reid",
         "predictor": {"type": "ar"},
