@@ -38,6 +38,7 @@ from trackfw_plugins.maths.scene_registration import (
 from trackfw_plugins.maths.tps_rpm import match_points
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 from trackfw_plugins.trackers.appearance_memory import AppearanceMemory, AppearanceSettings
+from trackfw_plugins.trackers.bystanders import Bystanders, BystanderSettings
 from trackfw_plugins.trackers.lifecycle import Lifecycle, LifecycleSettings
 from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio, stands_out
 
@@ -54,8 +55,11 @@ def _kalman3_rpm() -> TpsRpmSettings:
 
 
 def _cmc_registration() -> RegistrationSettings:
-    # BoT-SORT's GMC fits an affine map to sparse features between consecutive frames.
-    return RegistrationSettings(model="affine", max_features=500)
+    # BoT-SORT's GMC fits a partial affine map (a similarity) to sparse features between
+    # consecutive frames. A full affine fit sheared by walkers' features, and a similarity that
+    # zooms by more than a few percent in 1/30 s, moved predictions 15-40 px off the heads (synth
+    # seed 9): between consecutive frames the camera barely changes scale.
+    return RegistrationSettings(model="similarity", max_features=500, max_area_change=1.05)
 
 
 #: Seconds between two searches of the whole frame for a lost target's look (each describes every
@@ -106,6 +110,12 @@ class KalmanTrackerParams(StageParams):
         default_factory=AppearanceSettings,
         description="the appearance check of re-acquisition (reads pixels unless 'none')",
     )
+    bystanders: BystanderSettings | None = Field(
+        None,
+        description="also follow the heads no target holds, as anonymous tracks that compete"
+        " with the targets in the association (Hungarian only), so that a target whose head"
+        " was missed does not take a passing bystander's; null = off",
+    )
     cmc: bool = Field(
         False,
         description="camera-motion compensation: warp the filters by the scene registration of"
@@ -152,6 +162,11 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.memory = AppearanceMemory(
             params.appearance, len(positions), self.video.height, self.life.fps
         )
+        self.bystanders = (
+            None
+            if params.bystanders is None
+            else Bystanders.start(params.bystanders, params.P0, params.Q, params.R)
+        )
         self._remember_scene(None)
 
     def associate(
@@ -180,19 +195,38 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         # Until a detection supports a target its gate may be wider (Lifecycle.unseen).
         unseen = self.life.unseen(targets)
         if start is None or self.gate is None or not unseen.any():
-            return hungarian(cost, self.gate)
+            return self._hungarian_with_bystanders(cost, self.gate, detections.points)
         # Beyond the usual gate only a clearly nearest detection: another one nearby may be a
         # bystander whose head the detector found while missing the target's.
         clear = nearer_by_ratio(cost, START_NEARER_RATIO)
         start_gate = start * self.video.height / 1080.0
         wide = unseen[:, None] & clear & (cost <= start_gate)
-        return hungarian(np.where((cost <= self.gate) | wide, cost, np.inf), start_gate)
+        gated = np.where((cost <= self.gate) | wide, cost, np.inf)
+        return self._hungarian_with_bystanders(gated, start_gate, detections.points)
+
+    def _hungarian_with_bystanders(
+        self, cost: FloatArray, gate: float | None, points: FloatArray
+    ) -> IntArray:
+        """Hungarian on the targets' ``(K, N)`` cost, with the competing bystander tracks'
+        rows (gated by the usual gate) stacked under it; returns the targets' ``(K,)`` rows.
+
+        docs/algorithms/segment-tracker.md#bystander-tracks
+        """
+        bystanders = self.bystanders
+        if bystanders is None or len(bystanders.competing()) == 0:
+            return hungarian(cost, gate)
+        rival = bystanders.rival_cost(points, self.gate)
+        columns = hungarian(np.concatenate([cost, rival]), gate)
+        bystanders.claim(columns[len(cost) :])
+        return columns[: len(cost)]
 
     def step(self, t: int, detections: Detections) -> None:
         """Predict, associate the tracked and tentative targets, re-acquire the others."""
         if self.params.cmc:
             self._compensate(detections)
         self.bank.predict()
+        if self.bystanders is not None:
+            self.bystanders.predict()
         life = self.life
         active, inactive = life.active(), life.inactive()
         rows = self.associate(self.bank.positions[active], detections, active)
@@ -211,10 +245,25 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             self.matched[swapped] = NO_MATCH
         missing = active[~hit]
         predicted = self.bank.positions[missing]
-        hidden = life.hidden_behind(missing, predicted, detections.points[taken], sides[taken])
+        # A bystander track's detection hides a target as well as another target's does.
+        occluders = np.concatenate([taken, self._claimed_by_bystanders()])
+        hidden = life.hidden_behind(
+            missing, predicted, detections.points[occluders], sides[occluders]
+        )
         life.unsupported(t, missing, predicted, hidden)
         found, columns = self._reacquire(t, detections, inactive, targets, taken)
         life.supported(t, found, self.bank.positions[found], sides[columns])
+        if self.bystanders is not None:
+            held = np.concatenate([taken, columns])
+            self.bystanders.update(
+                detections.points, held, detections.points[held], sides[held], self.gate
+            )
+
+    def _claimed_by_bystanders(self) -> IntArray:
+        """Rows of this frame's detections the bystander tracks took in the association."""
+        if self.bystanders is None:
+            return np.zeros(0, dtype=np.int64)
+        return self.bystanders.claimed[self.bystanders.claimed >= 0]
 
     def _contest(
         self,
@@ -275,6 +324,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         motion = register_features(previous, self.previous_features, self.params.cmc_registration)
         if motion.ok:
             self.bank.warp(motion.matrix)
+            if self.bystanders is not None:
+                self.bystanders.warp(motion.matrix)
 
     def _remember_scene(self, boxes: FloatArray | None) -> None:
         """Keep this frame's scene features (outside the head ``boxes``) for the next frame."""
@@ -376,6 +427,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2).copy()
         matched = np.asarray(matched_detection, dtype=np.int64).copy()
         self._remember_scene(None if detections is None else detections.boxes)
+        if self.bystanders is not None:
+            self.bystanders.clear()
         active = self.life.active()
         detection_rows = self._detection_rows(matched, detections)
         sides = self._matched_sides(detection_rows, detections)

@@ -146,3 +146,55 @@ def test_a_target_hidden_behind_a_detection_that_looks_like_it_takes_it(
             assert matched == [0, 1], t
         else:
             assert matched == ([0, -1] if margin is None else [-1, 0]), t
+
+
+def _crossing_frames(t: int, target_seen: bool) -> Detections:
+    """A standing target at (300, 300) and a bystander walking left past it at 5 px a frame."""
+    bystander = [420.0 - 5.0 * t, 312.0]
+    points = [[300.0, 300.0], bystander] if target_seen else [bystander]
+    return Detections.from_points(np.array(points))
+
+
+@pytest.mark.parametrize("bystanders", [False, True])
+def test_a_target_missed_beside_a_passing_bystander_does_not_follow_them(bystanders: bool) -> None:
+    params = {"bystanders": {} if bystanders else None}
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([1]), np.array([[300.0, 300.0]]))
+    for t in range(1, 40):
+        # The detector misses the target while the bystander passes within 25 px of it.
+        tracker.step(t, _crossing_frames(t, target_seen=not 20 <= t <= 26))
+    followed = np.linalg.norm(tracker.positions()[0] - [300.0, 300.0])
+    assert len(tracker.positions()) == 1  # bystander tracks are never reported
+    assert (followed < 5.0) == bystanders
+    assert (tracker.states()[0].matched_detection == 0) == bystanders
+
+
+@pytest.mark.parametrize("max_area_change", [1.05, 2.0])
+def test_camera_motion_compensation_refuses_a_sudden_zoom(max_area_change: float) -> None:
+    # An 8 % zoom in one frame is a wrong fit for a worn camera: by default the map is refused.
+    import cv2
+
+    scene = _panned_frames(0.0, 1)[0]
+    zoom = cv2.getRotationMatrix2D((640.0, 360.0), 0.0, 1.08)
+    frames = [scene, cv2.warpAffine(scene, zoom, (1280, 720))]
+    registration = {"model": "similarity", "max_features": 500, "max_area_change": max_area_change}
+    params = {"cmc": True, "cmc_registration": registration}
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    tracker.see(frames[0])
+    tracker.initialise(0, np.array([1]), np.array([[1000.0, 200.0]]))
+    tracker.see(frames[1])
+    tracker.step(1, Detections.from_points(np.zeros((0, 2))))
+    moved = np.linalg.norm(tracker.positions()[0] - [1000.0, 200.0])
+    zoomed = np.linalg.norm(zoom @ [1000.0, 200.0, 1.0] - [1000.0, 200.0])
+    if max_area_change < 1.08**2:
+        assert moved < 0.5
+    else:
+        assert abs(moved - zoomed) < 3.0
+
+
+def test_camera_motion_compensation_defaults_to_a_bounded_similarity() -> None:
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": {"cmc": True}})
+    registration = tracker.params.cmc_registration
+    assert registration.model == "similarity" and registration.max_area_change == 1.05
