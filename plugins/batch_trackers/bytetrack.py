@@ -94,8 +94,7 @@ class _Live:
         return np.hstack([self.bank.means[:, :2] - 0.5 * sizes, sizes])
 
     def keep(self, rows: IntArray) -> None:
-        self.bank.means = self.bank.means[rows]
-        self.bank.covariances = self.bank.covariances[rows]
+        self.bank.keep(rows)
         for name in ("ids", "sizes", "confirmed", "tracked", "last_seen"):
             values = getattr(self, name)
             setattr(self, name, [values[row] for row in rows.tolist()])
@@ -241,9 +240,7 @@ class _ByteTrackRun:
         if not len(births):
             return
         first = self.params.confirm_first_frame and not self.seen_detections
-        born = KalmanBank.start(detections.points[births], self.params.initial_variance)
-        live.bank.means = np.vstack([live.bank.means, born.means])
-        live.bank.covariances = np.concatenate([live.bank.covariances, born.covariances])
+        live.bank.add(detections.points[births])
         for row in births.tolist():
             live.ids.append(self.next_id)
             live.sizes.append(detections.sizes[row])

@@ -336,15 +336,13 @@ def track_gtcsa(
         alive = misses <= params.max_miss
         for index in np.flatnonzero(~alive).tolist():
             coasted.pop(int(ids[index]), None)
-        bank.means, bank.covariances = bank.means[alive], bank.covariances[alive]
+        bank.keep(alive)
         ids, misses = ids[alive], misses[alive]
         free = np.ones(len(points), dtype=bool)
         free[matched[hit]] = False
         births = points[free]
         if len(births):
-            born = KalmanBank.start(births, params.P0, params.Q, params.R)
-            bank.means = np.vstack([bank.means, born.means])
-            bank.covariances = np.concatenate([bank.covariances, born.covariances])
+            bank.add(births)
             new_ids = np.arange(next_id, next_id + len(births), dtype=np.int64)
             next_id += len(births)
             ids = np.concatenate([ids, new_ids])

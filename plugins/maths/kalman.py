@@ -87,6 +87,22 @@ class KalmanBank:
         """``(K, 2)`` current velocities in pixels per frame."""
         return self.means[:, 2:].copy()
 
+    def keep(self, rows: NDArray[np.int64] | NDArray[np.bool_]) -> None:
+        """Keep only the filters ``rows`` (indices, in that order, or a ``(K,)`` mask)."""
+        self.means, self.covariances = self.means[rows], self.covariances[rows]
+
+    def add(self, positions: FloatArray) -> None:
+        """Append filters at ``(M, 2)`` positions with zero velocity and covariance P0.
+
+        >>> bank = KalmanBank.start(np.array([[10.0, 20.0]]))
+        >>> bank.add(np.array([[30.0, 40.0]]))
+        >>> bank.positions.tolist()
+        [[10.0, 20.0], [30.0, 40.0]]
+        """
+        born = KalmanBank.start(positions, self.initial_variance)
+        self.means = np.concatenate([self.means, born.means])
+        self.covariances = np.concatenate([self.covariances, born.covariances])
+
     def predict(self, steps: int = 1) -> None:
         """Advance every filter by ``steps`` frames without correction (``P += Q`` each step)."""
         transition = transition_matrix()

@@ -88,8 +88,11 @@ class Bystanders:
 
     def warp(self, matrix: FloatArray) -> None:
         """Carry every track through the camera motion (see :meth:`KalmanBank.warp`)."""
-        if len(self):
-            self.bank.warp(matrix)
+        self.bank.warp(matrix)
+
+    def claimed_rows(self) -> IntArray:
+        """Rows of this frame's detections the tracks took in the joint assignment."""
+        return self.claimed[self.claimed >= 0]
 
     def competing(self) -> IntArray:
         """Rows of the confirmed tracks that had a detection on the previous frame (a track
@@ -162,18 +165,12 @@ class Bystanders:
         return np.asarray((distance_matrix(positions, target_points) <= reach[None, :]).any(axis=1))
 
     def _keep(self, keep: BoolArray) -> None:
-        self.bank.means = self.bank.means[keep]
-        self.bank.covariances = self.bank.covariances[keep]
+        self.bank.keep(keep)
         self.hits, self.misses = self.hits[keep], self.misses[keep]
         self.confirmed, self.claimed = self.confirmed[keep], self.claimed[keep]
 
     def _add(self, positions: FloatArray) -> None:
-        bank = self.bank
-        fresh = KalmanBank.start(
-            positions, bank.initial_variance, bank.process_noise, bank.observation_noise
-        )
-        bank.means = np.concatenate([bank.means, fresh.means])
-        bank.covariances = np.concatenate([bank.covariances, fresh.covariances])
+        self.bank.add(positions)
         count = len(positions)
         self.hits = np.concatenate([self.hits, np.ones(count, dtype=np.int64)])
         self.misses = np.concatenate([self.misses, np.zeros(count, dtype=np.int64)])

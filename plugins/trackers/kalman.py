@@ -246,7 +246,12 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         missing = active[~hit]
         predicted = self.bank.positions[missing]
         # A bystander track's detection hides a target as well as another target's does.
-        occluders = np.concatenate([taken, self._claimed_by_bystanders()])
+        claimed = (
+            np.zeros(0, dtype=np.int64)
+            if self.bystanders is None
+            else self.bystanders.claimed_rows()
+        )
+        occluders = np.concatenate([taken, claimed])
         hidden = life.hidden_behind(
             missing, predicted, detections.points[occluders], sides[occluders]
         )
@@ -258,12 +263,6 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             self.bystanders.update(
                 detections.points, held, detections.points[held], sides[held], self.gate
             )
-
-    def _claimed_by_bystanders(self) -> IntArray:
-        """Rows of this frame's detections the bystander tracks took in the association."""
-        if self.bystanders is None:
-            return np.zeros(0, dtype=np.int64)
-        return self.bystanders.claimed[self.bystanders.claimed >= 0]
 
     def _contest(
         self,
