@@ -45,6 +45,18 @@ class BystanderSettings(FiniteModel):
         " track, and a track that comes that near a target's detection ends: a second detection"
         " of the target's own head is not a bystander",
     )
+    refuse_seen_apart: bool = Field(
+        True,
+        description="a lost target never re-takes the head a bystander track holds when that"
+        " track was last seen, without a break, apart from the target's own detection: two heads"
+        " seen at once are two people",
+    )
+    apart_gates: float = Field(
+        2.0,
+        gt=0.0,
+        description="seen apart: farther than this many association gates from the target's"
+        " detection (a target's detection may be a neighbour's head, a noisy head point)",
+    )
 
 
 @dataclass
@@ -58,6 +70,11 @@ class Bystanders:
         misses: ``(B,)`` frames in a row each track went without one.
         confirmed: ``(B,)`` whether each track once had ``confirm_frames`` hits in a row.
         claimed: ``(B,)`` row of the current frame's detections each track took (-1: none).
+        apart: ``(B, K)`` whether each track, since it last came within ``apart_gates``
+            association gates of target k's detection or went a frame without a detection, was
+            seen farther than that from target
+            k's detection on some frame: then it is someone else.
+        assigned: whether the joint assignment with the targets ran on the current frame.
     """
 
     settings: BystanderSettings
@@ -66,13 +83,21 @@ class Bystanders:
     misses: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     confirmed: BoolArray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     claimed: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    apart: BoolArray = field(default_factory=lambda: np.zeros((0, 0), dtype=bool))
+    assigned: bool = False
 
     @classmethod
     def start(
-        cls, settings: BystanderSettings, initial_variance: float, process: float, noise: float
+        cls,
+        settings: BystanderSettings,
+        initial_variance: float,
+        process: float,
+        noise: float,
+        targets: int = 0,
     ) -> Bystanders:
-        """No tracks yet; filters started with these P0, Q and R."""
-        return cls(settings, KalmanBank.start(np.zeros((0, 2)), initial_variance, process, noise))
+        """No tracks yet; filters started with these P0, Q and R, beside ``targets`` targets."""
+        bank = KalmanBank.start(np.zeros((0, 2)), initial_variance, process, noise)
+        return cls(settings, bank, apart=np.zeros((0, targets), dtype=bool))
 
     def __len__(self) -> int:
         return len(self.hits)
@@ -85,6 +110,7 @@ class Bystanders:
         """Advance every track by one frame; nothing is claimed yet."""
         self.bank.predict()
         self.claimed = np.full(len(self), -1, dtype=np.int64)
+        self.assigned = False
 
     def warp(self, matrix: FloatArray) -> None:
         """Carry every track through the camera motion (see :meth:`KalmanBank.warp`)."""
@@ -111,6 +137,40 @@ class Bystanders:
     def claim(self, columns: IntArray) -> None:
         """The joint assignment gave the competing tracks these ``(C,)`` detection rows (-1)."""
         self.claimed[self.competing()] = columns
+        self.assigned = True
+
+    def claim_alone(self, points: FloatArray, taken: IntArray, gate: float | None) -> None:
+        """Where no joint assignment ran this frame (no target active, or an association
+        without one), the competing tracks take the ``(N, 2)`` detections not in ``taken``."""
+        if self.assigned:
+            return
+        rivals = self.competing()
+        free = np.setdiff1d(np.arange(len(points)), taken)
+        cost = distance_matrix(self.bank.positions[rivals], points[free])
+        columns = hungarian(cost, gate)
+        hit = columns >= 0
+        self.claimed[rivals[hit]] = free[columns[hit]]
+        self.assigned = True
+
+    def seen_apart(self, targets: IntArray, columns: IntArray, count: int) -> BoolArray:
+        """``(M, N)``: whether detection ``columns[n]`` (of the frame's ``count``) is held by a
+        track seen apart from target ``targets[m]`` (see ``apart``).
+
+        >>> import numpy as np
+        >>> tracks = Bystanders.start(BystanderSettings(), 10.0, 1.0, 1.0, targets=2)
+        >>> tracks.claimed = np.array([2, -1])
+        >>> tracks.apart = np.array([[True, False], [True, True]])
+        >>> tracks.seen_apart(np.array([0, 1]), np.array([0, 2]), 3).tolist()
+        [[False, True], [False, False]]
+        """
+        holder = np.full(count, -1, dtype=np.int64)
+        held = np.flatnonzero(self.claimed >= 0)
+        holder[self.claimed[held]] = held
+        by = holder[columns]
+        result = np.zeros((len(targets), len(columns)), dtype=bool)
+        some = by >= 0
+        result[:, some] = self.apart[np.ix_(by[some], targets)].T
+        return result
 
     def update(
         self,
@@ -119,6 +179,7 @@ class Bystanders:
         target_points: FloatArray,
         target_sides: FloatArray,
         gate: float | None,
+        holders: IntArray | None = None,
     ) -> None:
         """Close the frame: correct, start and end tracks.
 
@@ -129,6 +190,8 @@ class Bystanders:
             target_points: ``(M, 2)`` the targets' detections this frame.
             target_sides: ``(M,)`` their head sides (NaN: unknown).
             gate: association gate in pixels for the tracks the joint assignment did not serve.
+            holders: ``(M,)`` the target (row) of each of ``target_points``; None: unknown
+                (no track is then seen apart from any target).
         """
         claimed = self.claimed.copy()
         lost_to_target = np.isin(claimed, taken) & (claimed >= 0)
@@ -146,6 +209,9 @@ class Bystanders:
         self.hits = np.where(hit, self.hits + 1, 0)
         self.misses = np.where(hit, 0, self.misses + 1)
         self.confirmed |= self.hits >= self.settings.confirm_frames
+        # A track that went a frame without a detection may come back on someone else.
+        self.apart[~hit] = False
+        self._see(np.flatnonzero(hit), target_points, holders, gate)
         near = self._near(self.bank.positions, target_points, target_sides)
         coasting = self.confirmed & (self.misses < self.settings.end_after_frames)
         keep = ~lost_to_target & ~near & (hit | coasting)
@@ -153,6 +219,7 @@ class Bystanders:
         rest = np.setdiff1d(free, claimed[hit])
         new = rest[~self._near(points[rest], target_points, target_sides)]
         self._add(points[new])
+        self._see(np.arange(len(self) - len(new), len(self)), target_points, holders, gate)
 
     def _near(
         self, positions: FloatArray, target_points: FloatArray, sides: FloatArray
@@ -168,6 +235,22 @@ class Bystanders:
         self.bank.keep(keep)
         self.hits, self.misses = self.hits[keep], self.misses[keep]
         self.confirmed, self.claimed = self.confirmed[keep], self.claimed[keep]
+        self.apart = self.apart[keep]
+
+    def _see(
+        self,
+        rows: IntArray,
+        target_points: FloatArray,
+        holders: IntArray | None,
+        gate: float | None,
+    ) -> None:
+        """Tracks ``rows`` had a detection this frame: update their ``apart`` against the
+        targets' detections ``target_points`` held by ``holders``."""
+        if holders is None or len(holders) == 0 or len(rows) == 0:
+            return
+        distance = distance_matrix(self.bank.positions[rows], target_points)
+        reach = np.inf if gate is None else self.settings.apart_gates * gate
+        self.apart[np.ix_(rows, holders)] = distance > reach
 
     def _add(self, positions: FloatArray) -> None:
         self.bank.add(positions)
@@ -177,3 +260,6 @@ class Bystanders:
         confirmed = np.full(count, self.settings.confirm_frames <= 1)
         self.confirmed = np.concatenate([self.confirmed, confirmed])
         self.claimed = np.concatenate([self.claimed, np.full(count, -1, dtype=np.int64)])
+        self.apart = np.concatenate(
+            [self.apart, np.zeros((count, self.apart.shape[1]), dtype=bool)]
+        )

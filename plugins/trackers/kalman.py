@@ -16,7 +16,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from trackfw.arrays import FloatArray, IntArray, UInt8Array
+from trackfw.arrays import BoolArray, FloatArray, IntArray, UInt8Array
 from trackfw.records import (
     LOST,
     NO_MATCH,
@@ -165,7 +165,9 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.bystanders = (
             None
             if params.bystanders is None
-            else Bystanders.start(params.bystanders, params.P0, params.Q, params.R)
+            else Bystanders.start(
+                params.bystanders, params.P0, params.Q, params.R, targets=len(positions)
+            )
         )
         self._remember_scene(None)
 
@@ -256,12 +258,19 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             missing, predicted, detections.points[occluders], sides[occluders]
         )
         life.unsupported(t, missing, predicted, hidden)
+        if self.bystanders is not None:
+            self.bystanders.claim_alone(detections.points, taken, self.gate)
         found, columns = self._reacquire(t, detections, inactive, targets, taken)
         life.supported(t, found, self.bank.positions[found], sides[columns])
         if self.bystanders is not None:
             held = np.concatenate([taken, columns])
             self.bystanders.update(
-                detections.points, held, detections.points[held], sides[held], self.gate
+                detections.points,
+                held,
+                detections.points[held],
+                sides[held],
+                self.gate,
+                np.concatenate([targets, found]),
             )
 
     def _contest(
@@ -357,6 +366,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         # 'none') a target never re-enters away from its expected place.
         veto = self.memory.veto(self.image, inactive, detections, free, cost <= 1.0, entering)
         cost[veto | (entering & (not self.memory.active or self.image is None))] = np.inf
+        cost[self._seen_apart(inactive, free, len(detections))] = np.inf
         columns = hungarian(cost, 1.0)
         hit = columns >= 0
         found, chosen = inactive[hit], free[columns[hit]]
@@ -399,9 +409,22 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         look = self.memory.looks(self.image, rows, detections, np.arange(len(detections)))
         clear = stands_out(look, settings.anywhere_margin)
         cost = np.where(clear, look, np.inf)[:, free]
+        cost[self._seen_apart(rows, free, len(detections))] = np.inf
         columns = hungarian(cost, settings.anywhere_max_distance)
         hit = columns >= 0
         return rows[hit], free[columns[hit]]
+
+    def _seen_apart(self, rows: IntArray, columns: IntArray, count: int) -> BoolArray:
+        """``(M, N)``: whether detection ``columns[n]`` (of ``count``) is held by a bystander
+        track seen apart from target ``rows[m]``'s own detection, without a break since.
+
+        Two heads seen on the same frame are two people, so that bystander is not the lost
+        target (docs/algorithms/segment-tracker.md#bystander-tracks).
+        """
+        bystanders = self.bystanders
+        if bystanders is None or not bystanders.settings.refuse_seen_apart:
+            return np.zeros((len(rows), len(columns)), dtype=bool)
+        return bystanders.seen_apart(rows, columns, count)
 
     def _restart(self, rows: IntArray, positions: FloatArray) -> None:
         """Restart the filters ``rows`` at ``(M, 2)`` positions with zero velocity and P0."""

@@ -170,6 +170,22 @@ def test_a_target_missed_beside_a_passing_bystander_does_not_follow_them(bystand
     assert (tracker.states()[0].matched_detection == 0) == bystanders
 
 
+@pytest.mark.parametrize("refuse", [False, True])
+def test_a_lost_target_does_not_take_a_bystander_seen_apart_from_it(refuse: bool) -> None:
+    # A standing target, and a bystander standing 45 px away (beyond one 33 px gate at 720p).
+    # The target's head is never detected after frame 10: it is lost, and its re-acquisition
+    # gate grows until it reaches the bystander, who was seen beside it: not the target.
+    params = {"bystanders": {"refuse_seen_apart": refuse, "apart_gates": 1.0}}
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VideoContext(name="v", path="v", n_frames=120, width=1280, height=720))
+    tracker.initialise(0, np.array([1]), np.array([[300.0, 300.0]]))
+    for t in range(1, 100):
+        points = [[300.0, 300.0], [345.0, 300.0]] if t < 10 else [[345.0, 300.0]]
+        tracker.step(t, Detections.from_points(np.array(points)))
+    assert (tracker.states()[0].matched_detection == 0) != refuse
+    assert tracker.statuses()[0] == ("lost" if refuse else "tracked")
+
+
 @pytest.mark.parametrize("max_area_change", [1.05, 2.0])
 def test_camera_motion_compensation_refuses_a_sudden_zoom(max_area_change: float) -> None:
     # An 8 % zoom in one frame is a wrong fit for a worn camera: by default the map is refused.
