@@ -6,7 +6,9 @@ Kalman1 of the paper is ``association: hungarian``, Kalman2 ``association: neare
 ``association: tps-rpm`` (TPS-RPM between all predictions and detections on every frame).
 The filter maths lives in :mod:`trackfw_plugins.maths.kalman`, the association in
 :mod:`trackfw_plugins.maths.assignment`, the targets' states (tracked, lost, out-of-view,
-tentative) and their re-acquisition in :mod:`trackfw_plugins.trackers.lifecycle`.
+tentative) and their re-acquisition in :mod:`trackfw_plugins.trackers.lifecycle`, the bystanders'
+anonymous tracks in :mod:`trackfw_plugins.trackers.bystanders`, the look check of the matches at b
+in :mod:`trackfw_plugins.trackers.look_at_b`.
 """
 
 from __future__ import annotations
@@ -40,14 +42,13 @@ from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 from trackfw_plugins.trackers.appearance_memory import AppearanceMemory, AppearanceSettings
 from trackfw_plugins.trackers.bystanders import Bystanders, BystanderSettings
 from trackfw_plugins.trackers.lifecycle import Lifecycle, LifecycleSettings
+from trackfw_plugins.trackers.look_at_b import (
+    box_sides,
+    check_looks_at_b,
+    detection_rows_of,
+    matched_sides,
+)
 from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio, stands_out
-
-
-def box_sides(detections: Detections) -> FloatArray:
-    """``(N,)`` square root of each detection's box area; NaN without boxes."""
-    if detections.boxes is None:
-        return np.full(len(detections), np.nan)
-    return np.sqrt(np.abs(detections.boxes[:, 2] * detections.boxes[:, 3]))
 
 
 def _kalman3_rpm() -> TpsRpmSettings:
@@ -452,8 +453,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         if self.bystanders is not None:
             self.bystanders.clear()
         active = self.life.active()
-        detection_rows = self._detection_rows(matched, detections)
-        sides = self._matched_sides(detection_rows, detections)
+        detection_rows = detection_rows_of(matched, detections)
+        sides = matched_sides(detection_rows, detections)
         self.life.rescale_sizes(active, sides[active])
         mismatch = self.life.size_mismatch(np.arange(len(matched)), sides)
         matched[np.diagonal(mismatch)] = NO_MATCH
@@ -463,10 +464,19 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             if self.params.appearance.gap_rematch_inactive
             else np.zeros(0, dtype=np.int64)
         )
-        unlike, returned = self._check_looks_at_b(
-            active, matched, detection_rows, positions, detections, inactive
+        unlike, returned = check_looks_at_b(
+            self.memory,
+            self.life,
+            self.image,
+            self.params.appearance,
+            active,
+            matched,
+            detection_rows,
+            positions,
+            detections,
+            inactive,
         )
-        sides = self._matched_sides(detection_rows, detections)
+        sides = matched_sides(detection_rows, detections)
         if self.params.reinit_at_b:
             # The old velocity belongs to the pre-interval camera pose
             # (docs/algorithms/segment-tracker.md#re-initialisation-at-b).
@@ -488,84 +498,6 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.matched[returned] = matched[returned]
         supported = np.concatenate([active[matched[active] != NO_MATCH], returned])
         self.life.supported(t, supported, positions[supported], sides[supported])
-
-    def _check_looks_at_b(
-        self,
-        active: IntArray,
-        matched: IntArray,
-        detection_rows: IntArray,
-        positions: FloatArray,
-        detections: Detections | None,
-        inactive: IntArray,
-    ) -> tuple[IntArray, IntArray]:
-        """Refuse the matches at b that look like someone else; re-match those targets by look.
-
-        A match farther than ``appearance.gap_max_distance`` from the target's descriptor is
-        refused. The refused targets, and the ``inactive`` ones (lost and out-of-view targets
-        with ``appearance.gap_rematch_inactive``), then take, by Hungarian on appearance
-        distance (same limit, ratio test, sizes checked), the detections no kept match holds:
-        when the window match swapped two targets, each finds its own head again.
-        ``matched``, ``detection_rows`` and ``positions`` are updated in place.
-
-        Returns:
-            The refused targets left without a match (to be lost), and the inactive targets
-            that found a detection.
-        """
-        none = np.zeros(0, dtype=np.int64)
-        limit = self.params.appearance.gap_max_distance
-        if limit is None or detections is None or len(detections) == 0:
-            return none, none
-        checked = active[detection_rows[active] >= 0]
-        look = self.memory.looks(self.image, checked, detections, detection_rows[checked])
-        unlike = checked[np.diagonal(look) > limit]  # NaN (nothing known) refuses nothing
-        if len(unlike) + len(inactive) == 0:
-            return none, none
-        detection_rows[unlike] = NO_MATCH
-        matched[unlike] = NO_MATCH
-        free = np.setdiff1d(np.arange(len(detections)), detection_rows[detection_rows >= 0])
-        candidates = np.concatenate([unlike, inactive])
-        # Every detection is described: the ratio test compares with the taken ones too.
-        look = self.memory.looks(self.image, candidates, detections, np.arange(len(detections)))
-        ratio = self.params.appearance.gap_rematch_ratio
-        if ratio is not None:
-            look = np.where(nearer_by_ratio(look, ratio), look, np.inf)
-        cost = look[:, free]
-        sides = box_sides(detections)[free]
-        cost[np.isnan(cost) | self.life.size_mismatch(candidates, sides)] = np.inf
-        strict = self.params.appearance.anywhere_max_distance
-        lost_rows = cost[len(unlike) :]  # a view: the inactive targets' rows
-        if strict is not None:
-            # A target lost before the interval has no match to be refused from: it is found
-            # by look alone, as the search anywhere finds it, and under that search's limit.
-            lost_rows[lost_rows > strict] = np.inf
-        columns = hungarian(cost, limit)
-        hit = columns >= 0
-        found, rows = candidates[hit], free[columns[hit]]
-        detection_rows[found] = rows
-        matched[found] = detections.index[rows]
-        positions[found] = detections.points[rows]
-        return unlike[~hit[: len(unlike)]], inactive[hit[len(unlike) :]]
-
-    @staticmethod
-    def _detection_rows(matched: IntArray, detections: Detections | None) -> IntArray:
-        """``(K,)`` row of ``detections`` of each target's matched detection index (-1: none)."""
-        rows = np.full(len(matched), NO_MATCH, dtype=np.int64)
-        if detections is None or len(detections) == 0:
-            return rows
-        lookup = {int(index): row for row, index in enumerate(detections.index)}
-        for k, index in enumerate(matched):
-            rows[k] = lookup.get(int(index), NO_MATCH)
-        return rows
-
-    @staticmethod
-    def _matched_sides(detection_rows: IntArray, detections: Detections | None) -> FloatArray:
-        """``(K,)`` box side of each target's matched detection row at b (NaN when none)."""
-        sides = np.full(len(detection_rows), np.nan)
-        if detections is None or len(detections) == 0:
-            return sides
-        found = detection_rows >= 0
-        sides[found] = box_sides(detections)[detection_rows[found]]
-        return sides
 
     def positions(self) -> FloatArray:
         return self.bank.means[:, :2].copy()

@@ -1,0 +1,118 @@
+"""The segment tracker at frame b: the gap matcher's matches checked by look, and re-matched.
+
+Used by :meth:`trackfw_plugins.trackers.kalman.KalmanTracker.reinitialise`. After an interval the
+gap matcher hands each target a detection of frame b (or none). A match that looks like someone
+else is refused, and the refused targets, with the targets lost before the interval, take by look
+alone the detections no kept match holds (docs/algorithms/segment-tracker.md#re-initialisation-at-b).
+Also the two lookups the restart needs: each target's row among the detections, and its box side.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from trackfw.arrays import FloatArray, IntArray, UInt8Array
+from trackfw.records import NO_MATCH, Detections
+from trackfw_plugins.maths.assignment import hungarian
+from trackfw_plugins.trackers.appearance_memory import AppearanceMemory, AppearanceSettings
+from trackfw_plugins.trackers.lifecycle import Lifecycle
+from trackfw_plugins.trackers.look_rules import nearer_by_ratio
+
+
+def box_sides(detections: Detections) -> FloatArray:
+    """``(N,)`` square root of each detection's box area; NaN without boxes."""
+    if detections.boxes is None:
+        return np.full(len(detections), np.nan)
+    return np.sqrt(np.abs(detections.boxes[:, 2] * detections.boxes[:, 3]))
+
+
+def detection_rows_of(matched: IntArray, detections: Detections | None) -> IntArray:
+    """``(K,)`` row of ``detections`` of each target's matched detection index (-1: none)."""
+    rows = np.full(len(matched), NO_MATCH, dtype=np.int64)
+    if detections is None or len(detections) == 0:
+        return rows
+    lookup = {int(index): row for row, index in enumerate(detections.index)}
+    for k, index in enumerate(matched):
+        rows[k] = lookup.get(int(index), NO_MATCH)
+    return rows
+
+
+def matched_sides(detection_rows: IntArray, detections: Detections | None) -> FloatArray:
+    """``(K,)`` box side of each target's matched detection row at b (NaN when none)."""
+    sides = np.full(len(detection_rows), np.nan)
+    if detections is None or len(detections) == 0:
+        return sides
+    found = detection_rows >= 0
+    sides[found] = box_sides(detections)[detection_rows[found]]
+    return sides
+
+
+def check_looks_at_b(
+    memory: AppearanceMemory,
+    life: Lifecycle,
+    image: UInt8Array | None,
+    settings: AppearanceSettings,
+    active: IntArray,
+    matched: IntArray,
+    detection_rows: IntArray,
+    positions: FloatArray,
+    detections: Detections | None,
+    inactive: IntArray,
+) -> tuple[IntArray, IntArray]:
+    """Refuse the matches at b that look like someone else; re-match those targets by look.
+
+    A match farther than ``settings.gap_max_distance`` from the target's descriptor is refused.
+    The refused targets, and the ``inactive`` ones (lost and out-of-view targets with
+    ``gap_rematch_inactive``), then take, by Hungarian on appearance distance (same limit, ratio
+    test, sizes checked), the detections no kept match holds: when the window match swapped two
+    targets, each finds its own head again.
+
+    Args:
+        memory: the targets' descriptors.
+        life: the targets' lifecycle (head sizes).
+        image: frame b's pixels.
+        settings: the appearance settings.
+        active: rows of the targets the gap matcher matched or placed.
+        matched: ``(K,)`` detection index of each target's match (-1: none); updated in place.
+        detection_rows: ``(K,)`` row of ``detections`` of each match; updated in place.
+        positions: ``(K, 2)`` each target's position at b; updated in place.
+        detections: frame b's detections.
+        inactive: rows of the lost and out-of-view targets looked for by look.
+
+    Returns:
+        The refused targets left without a match (to be lost), and the inactive targets that
+        found a detection.
+    """
+    none = np.zeros(0, dtype=np.int64)
+    limit = settings.gap_max_distance
+    if limit is None or detections is None or len(detections) == 0:
+        return none, none
+    checked = active[detection_rows[active] >= 0]
+    look = memory.looks(image, checked, detections, detection_rows[checked])
+    unlike = checked[np.diagonal(look) > limit]  # NaN (nothing known) refuses nothing
+    if len(unlike) + len(inactive) == 0:
+        return none, none
+    detection_rows[unlike] = NO_MATCH
+    matched[unlike] = NO_MATCH
+    free = np.setdiff1d(np.arange(len(detections)), detection_rows[detection_rows >= 0])
+    candidates = np.concatenate([unlike, inactive])
+    # Every detection is described: the ratio test compares with the taken ones too.
+    look = memory.looks(image, candidates, detections, np.arange(len(detections)))
+    if settings.gap_rematch_ratio is not None:
+        look = np.where(nearer_by_ratio(look, settings.gap_rematch_ratio), look, np.inf)
+    cost = look[:, free]
+    sides = box_sides(detections)[free]
+    cost[np.isnan(cost) | life.size_mismatch(candidates, sides)] = np.inf
+    strict = settings.anywhere_max_distance
+    lost_rows = cost[len(unlike) :]  # a view: the inactive targets' rows
+    if strict is not None:
+        # A target lost before the interval has no match to be refused from: it is found by
+        # look alone, as the search anywhere finds it, and under that search's limit.
+        lost_rows[lost_rows > strict] = np.inf
+    columns = hungarian(cost, limit)
+    hit = columns >= 0
+    found, rows = candidates[hit], free[columns[hit]]
+    detection_rows[found] = rows
+    matched[found] = detections.index[rows]
+    positions[found] = detections.points[rows]
+    return unlike[~hit[: len(unlike)]], inactive[hit[len(unlike) :]]

@@ -1,0 +1,80 @@
+"""The look check of the gap matcher's matches at b, and the lookups of the restart."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from trackfw.records import Detections, VideoContext
+from trackfw_plugins.trackers.appearance_memory import AppearanceSettings
+from trackfw_plugins.trackers.lifecycle import Lifecycle, LifecycleSettings
+from trackfw_plugins.trackers.look_at_b import check_looks_at_b, detection_rows_of, matched_sides
+
+VIDEO = VideoContext(name="v", path="v", n_frames=10, width=640, height=480)
+
+
+class _Looks:
+    """A stand-in for the appearance memory: fixed ``(K, N)`` look distances."""
+
+    def __init__(self, table: list[list[float]]) -> None:
+        self.table = np.array(table)
+
+    def looks(self, image: object, targets: np.ndarray, detections: object, columns: np.ndarray):
+        return self.table[np.ix_(targets, columns)]
+
+
+def _detections() -> Detections:
+    return Detections.from_points(np.array([[100.0, 100.0], [200.0, 100.0], [300.0, 100.0]]))
+
+
+def test_detection_rows_follow_the_detection_index() -> None:
+    detections = _detections()
+    assert detection_rows_of(np.array([2, -1, 0]), detections).tolist() == [2, -1, 0]
+    assert detection_rows_of(np.array([1]), None).tolist() == [-1]
+    assert np.isnan(matched_sides(np.array([0, -1]), detections)).all()  # no boxes
+
+
+def test_a_match_that_looks_like_someone_else_is_refused_and_rematched_by_look() -> None:
+    # Target 0 was matched to detection 0 but looks far from it (0.6) and near detection 2 (0.1);
+    # target 1 keeps its match (0.2). A lost target 2 looks like nothing in the frame.
+    looks = _Looks([[0.6, 0.5, 0.1], [0.9, 0.2, 0.8], [0.7, 0.7, 0.7]])
+    life = Lifecycle.start(LifecycleSettings(), VIDEO, 0, np.zeros((3, 2)))
+    settings = AppearanceSettings(gap_max_distance=0.4, anywhere_max_distance=0.4)
+    matched = np.array([0, 1, -1])
+    rows = matched.copy()
+    positions = np.array([[100.0, 100.0], [200.0, 100.0], [0.0, 0.0]])
+    unlike, returned = check_looks_at_b(
+        looks,  # type: ignore[arg-type]
+        life,
+        None,
+        settings,
+        np.array([0, 1]),
+        matched,
+        rows,
+        positions,
+        _detections(),
+        np.array([2]),
+    )
+    assert unlike.tolist() == [] and returned.tolist() == []
+    assert matched.tolist() == [2, 1, -1] and rows.tolist() == [2, 1, -1]
+    assert positions[0].tolist() == [300.0, 100.0]
+
+
+def test_a_refused_target_without_a_clear_look_is_left_to_be_lost() -> None:
+    # Target 0's look at every other detection is as far as at its match: nothing stands out.
+    looks = _Looks([[0.6, 0.35, 0.36]])
+    life = Lifecycle.start(LifecycleSettings(), VIDEO, 0, np.zeros((1, 2)))
+    settings = AppearanceSettings(gap_max_distance=0.4, gap_rematch_ratio=0.8)
+    matched = np.array([0])
+    unlike, _ = check_looks_at_b(
+        looks,  # type: ignore[arg-type]
+        life,
+        None,
+        settings,
+        np.array([0]),
+        matched,
+        matched.copy(),
+        np.zeros((1, 2)),
+        _detections(),
+        np.zeros(0, dtype=np.int64),
+    )
+    assert unlike.tolist() == [0] and matched.tolist() == [-1]
