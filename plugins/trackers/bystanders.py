@@ -209,9 +209,6 @@ class Bystanders:
         self.hits = np.where(hit, self.hits + 1, 0)
         self.misses = np.where(hit, 0, self.misses + 1)
         self.confirmed |= self.hits >= self.settings.confirm_frames
-        # A track that went a frame without a detection may come back on someone else.
-        self.apart[~hit] = False
-        self._see(np.flatnonzero(hit), target_points, holders, gate)
         near = self._near(self.bank.positions, target_points, target_sides)
         coasting = self.confirmed & (self.misses < self.settings.end_after_frames)
         keep = ~lost_to_target & ~near & (hit | coasting)
@@ -219,7 +216,7 @@ class Bystanders:
         rest = np.setdiff1d(free, claimed[hit])
         new = rest[~self._near(points[rest], target_points, target_sides)]
         self._add(points[new])
-        self._see(np.arange(len(self) - len(new), len(self)), target_points, holders, gate)
+        self._see(target_points, holders, gate)
 
     def _near(
         self, positions: FloatArray, target_points: FloatArray, sides: FloatArray
@@ -237,15 +234,13 @@ class Bystanders:
         self.confirmed, self.claimed = self.confirmed[keep], self.claimed[keep]
         self.apart = self.apart[keep]
 
-    def _see(
-        self,
-        rows: IntArray,
-        target_points: FloatArray,
-        holders: IntArray | None,
-        gate: float | None,
-    ) -> None:
-        """Tracks ``rows`` had a detection this frame: update their ``apart`` against the
-        targets' detections ``target_points`` held by ``holders``."""
+    def _see(self, target_points: FloatArray, holders: IntArray | None, gate: float | None) -> None:
+        """Update ``apart`` at the end of the frame against the targets' detections
+        ``target_points`` held by ``holders``: the tracks with a detection this frame (every new
+        one included) are measured, the others may come back on someone else."""
+        seen = self.hits > 0
+        self.apart[~seen] = False
+        rows = np.flatnonzero(seen)
         if holders is None or len(holders) == 0 or len(rows) == 0:
             return
         distance = distance_matrix(self.bank.positions[rows], target_points)
