@@ -4,7 +4,8 @@ See docs/algorithms/segment-tracker.md#target-lifecycle. The tracker associates 
 and ``tentative`` targets as before; this module decides their state from the association, keeps
 where a lost target is expected (from its offsets to the group, not from its own drifting
 prediction) and re-acquires lost and out-of-view targets on the detections left over. It never
-creates a target: the people of interest are the fixed set given on the first frame.
+creates a target: the people of interest are the fixed set given on the first frame. The border
+geometry of a return through an image edge is in :mod:`trackfw_plugins.trackers.border_return`.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from pydantic import ConfigDict, Field
 from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw.records import LOST, OUT_OF_VIEW, TENTATIVE, TRACKED, VideoContext
 from trackfw.stages import FiniteModel
+from trackfw_plugins.trackers.border_return import border_return_cost, image_edge
 
 #: States whose targets the tracker associates on every frame.
 ACTIVE = (TRACKED, TENTATIVE)
@@ -433,42 +435,25 @@ class Lifecycle:
     def reentry_cost(
         self, t: int, expected: FloatArray, rows: IntArray, points: FloatArray
     ) -> FloatArray:
-        """``(M, N)`` cost of a return through the border near where each target left: infinite
-        unless the detection lies within the margin of an image edge, else its distance to the
-        point of the exit edge nearest the expected place (the door) over a gate that grows with
-        the seconds lost. Any edge counts because a target that left near a corner may come back
-        round it (measured: out through the right edge, back 190 px away through the bottom).
-
-        The group's offsets place a returner poorly: the camera has turned while it was away
-        and the path it comes back on meets the image border somewhere else along that edge
-        (measured on the paper-leave synth set: 170 to 430 px at 720p from the exit point).
-        """
+        """``(M, N)`` cost of a return through the border near where each of ``rows`` left
+        (:func:`~trackfw_plugins.trackers.border_return.border_return_cost`)."""
         settings = self.settings
-        cost = np.full((len(rows), len(points)), np.inf)
-        sides = self.exit_side[rows]
-        if settings.reentry_margin_px_at_1080 is None or not (sides >= 0).any():
-            return cost
-        size = np.array([self.width - 1.0, self.height - 1.0])
-        # Distance inside each edge: left, right, top, bottom.
-        depth = np.column_stack(
-            [points[:, 0], size[0] - points[:, 0], points[:, 1], size[1] - points[:, 1]]
-        )
+        if settings.reentry_margin_px_at_1080 is None:
+            return np.full((len(rows), len(points)), np.inf)
         seconds = np.maximum((t - self.last_matched[rows]) / self.fps, 0.0)
-        gate = (
-            np.minimum(
-                settings.reacquire_gate_px_at_1080
-                + settings.reentry_growth_px_per_s_at_1080 * seconds,
-                settings.reentry_max_px_at_1080,
-            )
-            * self.scale
+        gates = np.minimum(
+            settings.reacquire_gate_px_at_1080 + settings.reentry_growth_px_per_s_at_1080 * seconds,
+            settings.reentry_max_px_at_1080,
         )
-        near = depth.min(axis=1) <= settings.reentry_margin_px_at_1080 * self.scale
-        for m in np.flatnonzero(sides >= 0):
-            side = int(sides[m])
-            door = np.clip(expected[m], 0.0, size)
-            door[side // 2] = 0.0 if side % 2 == 0 else size[side // 2]
-            cost[m, near] = np.linalg.norm(points[near] - door, axis=1) / gate[m]
-        return cost
+        return border_return_cost(
+            self.exit_side[rows],
+            expected,
+            gates * self.scale,
+            points,
+            settings.reentry_margin_px_at_1080 * self.scale,
+            self.width,
+            self.height,
+        )
 
     def place(self, t: int, rows: IntArray, expected: FloatArray) -> None:
         """Inactive ``rows`` not re-acquired: out of view when expected outside, lost otherwise."""
@@ -481,21 +466,9 @@ class Lifecycle:
         self.exit_side[rows[entering]] = self.edge(expected[entering])
 
     def edge(self, positions: FloatArray) -> IntArray:
-        """``(M,)`` image edge each ``(M, 2)`` position outside the image lies beyond (0 left,
-        1 right, 2 top, 3 bottom): the one it is farthest beyond."""
-        beyond = np.column_stack(
-            [
-                -positions[:, 0],
-                positions[:, 0] - (self.width - 1),
-                -positions[:, 1],
-                positions[:, 1] - (self.height - 1),
-            ]
-        )
-        return (
-            np.argmax(beyond, axis=1).astype(np.int64)
-            if len(positions)
-            else np.zeros(0, dtype=np.int64)
-        )
+        """``(M,)`` image edge each ``(M, 2)`` position outside the image lies beyond
+        (:func:`~trackfw_plugins.trackers.border_return.image_edge`)."""
+        return image_edge(positions, self.width, self.height)
 
 
 def size_line(ys: FloatArray, sizes: FloatArray) -> FloatArray:
