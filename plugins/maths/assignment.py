@@ -33,24 +33,41 @@ def _unassigned(cost: FloatArray) -> tuple[FloatArray, IntArray]:
     return cost, np.full(cost.shape[0], -1, dtype=np.int64)
 
 
-def hungarian(cost: FloatArray, gate: float | None = None) -> IntArray:
+def hungarian(
+    cost: FloatArray, gate: float | None = None, *, unmatched_cost: float | None = None
+) -> IntArray:
     """Optimal one-to-one assignment; returns ``(K,)`` column per row, ``-1`` when unassigned.
 
     Entries above ``gate`` are set to a large constant before solving and any pair that still
-    lands on one is dropped.
+    lands on one is dropped. The solver then matches as many rows as the gate allows, before it
+    looks at the cost: one row without its own column can push a chain of rows onto their
+    neighbours' columns. With ``unmatched_cost`` a row may instead stay unmatched at that cost
+    (ByteTrack's ``lapjv`` cost limit), so a chain is taken only when it costs less than the
+    row it matches.
 
     >>> hungarian(np.array([[1.0, 9.0], [2.0, 3.0]])).tolist()
     [0, 1]
     >>> hungarian(np.array([[1.0, 90.0], [2.0, 80.0]]), gate=50.0).tolist()
+    [0, -1]
+    >>> chain = np.array([[1.0, 40.0], [45.0, 99.0]])
+    >>> hungarian(chain, gate=50.0).tolist()
+    [1, 0]
+    >>> hungarian(chain, gate=50.0, unmatched_cost=50.0).tolist()
     [0, -1]
     """
     cost, assignment = _unassigned(cost)
     if cost.size == 0:
         return assignment
     gated = cost if gate is None else np.where(cost > gate, FORBIDDEN_COST, cost)
+    columns = cost.shape[1]
+    if unmatched_cost is not None:
+        # One private "unmatched" column per row, at unmatched_cost on its diagonal.
+        alone = np.full((len(cost), len(cost)), FORBIDDEN_COST)
+        np.fill_diagonal(alone, unmatched_cost)
+        gated = np.concatenate([gated, alone], axis=1)
     row_index, column_index = linear_sum_assignment(gated)
     for row, column in zip(row_index, column_index, strict=True):
-        if gate is not None and cost[row, column] > gate:
+        if column >= columns or (gate is not None and cost[row, column] > gate):
             continue
         assignment[row] = column
     return assignment

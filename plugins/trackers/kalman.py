@@ -96,6 +96,14 @@ class KalmanTrackerParams(StageParams):
         " start position, for a detection at most a third as far as the next one, pixels at"
         " 1080p; null = gate_px_at_1080",
     )
+    unmatched_cost_gates: float | None = Field(
+        None,
+        gt=0.0,
+        description="Hungarian association: a target may stay unmatched at this many gates of"
+        " cost, so that the solver takes a chain of matches onto neighbours' detections only"
+        " when it costs less; null = as many targets matched as the gate allows (then one"
+        " missed head in a tight group can shift every target onto a neighbour's detection)",
+    )
     P0: float = Field(PAPER_P0, gt=0.0, description="initial state variance (P0 = P0 * I4)")
     Q: float = Field(PAPER_Q, gt=0.0, description="transition noise variance (Q = Q * I4)")
     R: float = Field(PAPER_R, gt=0.0, description="observation noise variance (R = R * I2)")
@@ -216,10 +224,12 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         docs/algorithms/segment-tracker.md#bystander-tracks
         """
         bystanders = self.bystanders
+        multiple = self.params.unmatched_cost_gates
+        unmatched = None if multiple is None or gate is None else multiple * gate
         if bystanders is None or len(bystanders.competing()) == 0:
-            return hungarian(cost, gate)
+            return hungarian(cost, gate, unmatched_cost=unmatched)
         rival = bystanders.rival_cost(points, self.gate)
-        columns = hungarian(np.concatenate([cost, rival]), gate)
+        columns = hungarian(np.concatenate([cost, rival]), gate, unmatched_cost=unmatched)
         bystanders.claim(columns[len(cost) :])
         return columns[: len(cost)]
 

@@ -170,6 +170,29 @@ def test_a_target_missed_beside_a_passing_bystander_does_not_follow_them(bystand
     assert (tracker.states()[0].matched_detection == 0) == bystanders
 
 
+@pytest.mark.parametrize("unmatched_cost_gates", [None, 1.0, 2.0])
+def test_one_missed_head_does_not_shift_a_tight_row_of_targets(
+    unmatched_cost_gates: float | None,
+) -> None:
+    # Five standing targets 28 px apart (inside one 33 px gate at 720p) and a bystander 28 px
+    # left of the first. The last target's head is missed on frame 5: matching as many targets
+    # as the gate allows shifts every target onto its left neighbour's head.
+    params = {"unmatched_cost_gates": unmatched_cost_gates}
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    targets = np.array([[300.0 + 28.0 * k, 300.0] for k in range(5)])
+    bystander = np.array([[272.0, 300.0]])
+    tracker.initialise(0, np.arange(1, 6), targets)
+    for t in range(1, 5):
+        tracker.step(t, Detections.from_points(np.concatenate([targets, bystander])))
+    tracker.step(5, Detections.from_points(np.concatenate([targets[:4], bystander])))
+    matched = [state.matched_detection for state in tracker.states()]
+    if unmatched_cost_gates is not None:  # the shift costs 5 x 28 px, more than two gates
+        assert matched == [0, 1, 2, 3, -1]
+    else:
+        assert matched == [4, 0, 1, 2, 3]
+
+
 @pytest.mark.parametrize("refuse", [False, True])
 def test_a_lost_target_does_not_take_a_bystander_seen_apart_from_it(refuse: bool) -> None:
     # A standing target, and a bystander standing 45 px away (beyond one 33 px gate at 720p).
