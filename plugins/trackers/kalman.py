@@ -104,6 +104,13 @@ class KalmanTrackerParams(StageParams):
         " when it costs less; null = as many targets matched as the gate allows (then one"
         " missed head in a tight group can shift every target onto a neighbour's detection)",
     )
+    coasting_group_cost: Literal["none", "mean", "max"] = Field(
+        "none",
+        description="Hungarian association of a target that missed its detection on the previous"
+        " frame: the 'mean' or the 'max' of its distance to its prediction and to where its"
+        " offsets to the targets seen on the previous frame place it (at least two of them);"
+        " 'none' = the prediction alone",
+    )
     P0: float = Field(PAPER_P0, gt=0.0, description="initial state variance (P0 = P0 * I4)")
     Q: float = Field(PAPER_Q, gt=0.0, description="transition noise variance (Q = Q * I4)")
     R: float = Field(PAPER_R, gt=0.0, description="observation noise variance (R = R * I2)")
@@ -152,6 +159,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         params = self.params
         self.video = video
         self.image = None
+        self._frame = 0
         # The previous frame's scene features (cmc): each frame's are found once.
         self.previous_features: SceneFeatures | None = None
         self.gate = (
@@ -200,6 +208,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             return matched
         cost = distance_matrix(predicted, detections.points)
         cost[mismatch] = np.inf
+        if self.params.coasting_group_cost != "none" and rows is not None:
+            self._add_group_cost(cost, targets, detections.points)
         if self.params.association == "nearest":
             return greedy_nearest(cost, self.gate)
         start = self.params.start_gate_px_at_1080
@@ -214,6 +224,31 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         wide = unseen[:, None] & clear & (cost <= start_gate)
         gated = np.where((cost <= self.gate) | wide, cost, np.inf)
         return self._hungarian_with_bystanders(gated, start_gate, detections.points)
+
+    def _add_group_cost(self, cost: FloatArray, targets: IntArray, points: FloatArray) -> None:
+        """Blend into ``cost`` (``(K, N)``, rows ``targets``) the group's opinion on the targets
+        that missed their detection on the previous frame (``coasting_group_cost``).
+
+        Where a coasting target's offsets to at least two targets seen on the previous frame
+        place it (from their predictions) is a second prediction, one its own filter's drift
+        does not move.
+
+        docs/algorithms/segment-tracker.md#hungarian-association
+        """
+        life = self.life
+        previous = life.last_matched[targets]
+        coasting = np.flatnonzero(previous < self._frame - 1)
+        anchors = targets[previous == self._frame - 1]
+        if len(coasting) == 0 or len(anchors) < 2:
+            return
+        usable = life.known[np.ix_(targets[coasting], anchors)].sum(axis=1) >= 2
+        coasting = coasting[usable]
+        expected = life.expected(targets[coasting], self.bank.positions, anchors)
+        group = distance_matrix(expected, points)
+        if self.params.coasting_group_cost == "max":
+            cost[coasting] = np.maximum(cost[coasting], group)
+        else:
+            cost[coasting] = (cost[coasting] + group) / 2.0
 
     def _hungarian_with_bystanders(
         self, cost: FloatArray, gate: float | None, points: FloatArray
@@ -235,6 +270,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
 
     def step(self, t: int, detections: Detections) -> None:
         """Predict, associate the tracked and tentative targets, re-acquire the others."""
+        self._frame = t
         if self.params.cmc:
             self._compensate(detections)
         self.bank.predict()

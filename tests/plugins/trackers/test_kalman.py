@@ -193,6 +193,28 @@ def test_one_missed_head_does_not_shift_a_tight_row_of_targets(
         assert matched == [4, 0, 1, 2, 3]
 
 
+@pytest.mark.parametrize("group_cost", ["none", "max", "mean"])
+def test_a_coasting_target_whose_filter_drifted_keeps_to_the_group(group_cost: str) -> None:
+    # Four standing targets 200 / 100 px apart. The fourth one's head is missed from frame 10
+    # while its filter carries a velocity it took up from a neighbour's head (20 px a frame
+    # upwards); on frame 12 a bystander's head stands 10 px from its prediction, 70 px above
+    # where its offsets to the three others place it.
+    params = {"coasting_group_cost": group_cost}
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    heads = np.array([[200.0, 300.0], [400.0, 300.0], [200.0, 400.0], [400.0, 400.0]])
+    tracker.initialise(0, np.arange(1, 5), heads)
+    for t in range(1, 10):
+        tracker.step(t, Detections.from_points(heads))
+    tracker.bank.means[3, 2:] = [0.0, -20.0]
+    tracker.step(10, Detections.from_points(heads[:3]))
+    tracker.step(11, Detections.from_points(heads[:3]))
+    tracker.step(12, Detections.from_points(np.concatenate([heads[:3], [[400.0, 330.0]]])))
+    taken = tracker.states()[3].matched_detection == 3
+    assert taken == (group_cost == "none")
+    assert [state.matched_detection for state in tracker.states()[:3]] == [0, 1, 2]
+
+
 @pytest.mark.parametrize("refuse", [False, True])
 def test_a_lost_target_does_not_take_a_bystander_seen_apart_from_it(refuse: bool) -> None:
     # A standing target, and a bystander standing 45 px away (beyond one 33 px gate at 720p).
