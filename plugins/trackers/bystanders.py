@@ -72,8 +72,8 @@ class Bystanders:
         claimed: ``(B,)`` row of the current frame's detections each track took (-1: none).
         apart: ``(B, K)`` whether each track, since it last came within ``apart_gates``
             association gates of target k's detection or went a frame without a detection, was
-            seen farther than that from target
-            k's detection on some frame: then it is someone else.
+            seen farther than that from target k's detection on some frame: then it is someone
+            else.
         assigned: whether the joint assignment with the targets ran on the current frame.
     """
 

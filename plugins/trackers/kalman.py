@@ -229,22 +229,10 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         """Blend into ``cost`` (``(K, N)``, rows ``targets``) the group's opinion on the targets
         that missed their detection on the previous frame (``coasting_group_cost``).
 
-        Where a coasting target's offsets to at least two targets seen on the previous frame
-        place it (from their predictions) is a second prediction, one its own filter's drift
-        does not move.
-
         docs/algorithms/segment-tracker.md#hungarian-association
         """
-        life = self.life
-        previous = life.last_matched[targets]
-        coasting = np.flatnonzero(previous < self._frame - 1)
-        anchors = targets[previous == self._frame - 1]
-        if len(coasting) == 0 or len(anchors) < 2:
-            return
-        usable = life.known[np.ix_(targets[coasting], anchors)].sum(axis=1) >= 2
-        coasting = coasting[usable]
-        expected = life.expected(targets[coasting], self.bank.positions, anchors)
-        group = distance_matrix(expected, points)
+        coasting, places = self.life.group_places(self._frame, targets, self.bank.positions)
+        group = distance_matrix(places, points)
         if self.params.coasting_group_cost == "max":
             cost[coasting] = np.maximum(cost[coasting], group)
         else:

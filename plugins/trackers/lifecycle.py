@@ -315,6 +315,25 @@ class Lifecycle:
                 result[out] = np.median(positions[usable] + self.offsets[row, usable], axis=0)
         return result
 
+    def group_places(
+        self, t: int, rows: IntArray, positions: FloatArray
+    ) -> tuple[IntArray, FloatArray]:
+        """Where the group places those of ``rows`` that missed their detection on frame
+        ``t - 1``: from their offsets to at least two of ``rows`` seen on that frame, at their
+        ``positions`` (``(K, 2)``, every target's). A second prediction that a coasting
+        target's own drifting filter does not move.
+
+        Returns:
+            The ``(C,)`` indices into ``rows`` placed, and their ``(C, 2)`` places.
+        """
+        previous = self.last_matched[rows]
+        coasting = np.flatnonzero(previous < t - 1)
+        anchors = rows[previous == t - 1]
+        if len(coasting) == 0 or len(anchors) < 2:
+            return np.zeros(0, dtype=np.int64), np.zeros((0, 2))
+        coasting = coasting[self.known[np.ix_(rows[coasting], anchors)].sum(axis=1) >= 2]
+        return coasting, self.expected(rows[coasting], positions, anchors)
+
     def rescale_sizes(self, rows: IntArray, sizes: FloatArray) -> float:
         """Carry every target's head size through the camera's change of scale across a gap.
 

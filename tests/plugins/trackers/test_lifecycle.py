@@ -602,3 +602,18 @@ def test_a_target_lost_before_the_interval_stays_lost_between_two_heads_that_loo
     detections = _seen(np.vstack([at_b[1:], reds]))
     tracker.reinitialise(40, positions, np.array([-1, 0, 1]), detections)
     assert tracker.statuses() == ["lost", "tracked", "tracked"]
+
+
+def test_the_group_places_a_target_that_missed_the_last_frame() -> None:
+    tracker = _tracker()
+    tracker.step(1, _seen(GROUP))
+    tracker.step(2, _seen(GROUP[[0, 2]]))  # the middle target's head is missed on frame 2
+    rows = np.arange(3)
+    shifted = tracker.bank.positions + np.array([10.0, -5.0])  # the group's predictions on frame 3
+    coasting, places = tracker.life.group_places(3, rows, shifted)
+    assert coasting.tolist() == [1]
+    # Its offsets to the two others, measured on frame 1, carried by their predictions.
+    assert np.allclose(places, [GROUP[1] + np.array([10.0, -5.0])], atol=1.0)
+    # With only one other target seen there is no group to place it.
+    tracker.step(3, _seen(GROUP[[0]]))
+    assert len(tracker.life.group_places(4, rows, tracker.bank.positions)[0]) == 0
