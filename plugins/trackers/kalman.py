@@ -8,7 +8,8 @@ The filter maths lives in :mod:`trackfw_plugins.maths.kalman`, the association i
 :mod:`trackfw_plugins.maths.assignment`, the targets' states (tracked, lost, out-of-view,
 tentative) and their re-acquisition in :mod:`trackfw_plugins.trackers.lifecycle`, the bystanders'
 anonymous tracks in :mod:`trackfw_plugins.trackers.bystanders`, the look check of the matches at b
-in :mod:`trackfw_plugins.trackers.look_at_b`.
+in :mod:`trackfw_plugins.trackers.look_at_b`, camera-motion compensation in
+:mod:`trackfw_plugins.trackers.camera_motion`.
 """
 
 from __future__ import annotations
@@ -31,16 +32,12 @@ from trackfw.records import (
 from trackfw.stages import StageParams, Tracker
 from trackfw_plugins.maths.assignment import distance_matrix, greedy_nearest, hungarian
 from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R, KalmanBank
-from trackfw_plugins.maths.scene_registration import (
-    RegistrationSettings,
-    SceneFeatures,
-    register_features,
-    scene_features,
-)
+from trackfw_plugins.maths.scene_registration import RegistrationSettings
 from trackfw_plugins.maths.tps_rpm import match_points
 from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
 from trackfw_plugins.trackers.appearance_memory import AppearanceMemory, AppearanceSettings
 from trackfw_plugins.trackers.bystanders import Bystanders, BystanderSettings
+from trackfw_plugins.trackers.camera_motion import FrameMotion, consecutive_frames_registration
 from trackfw_plugins.trackers.lifecycle import Lifecycle, LifecycleSettings
 from trackfw_plugins.trackers.look_at_b import (
     box_sides,
@@ -53,14 +50,6 @@ from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio, stan
 
 def _kalman3_rpm() -> TpsRpmSettings:
     return TpsRpmSettings(normalisation="template", precision="float32")
-
-
-def _cmc_registration() -> RegistrationSettings:
-    # BoT-SORT's GMC fits a partial affine map (a similarity) to sparse features between
-    # consecutive frames. A full affine fit sheared by walkers' features, and a similarity that
-    # zooms by more than a few percent in 1/30 s, moved predictions 15-40 px off the heads (synth
-    # seed 9): between consecutive frames the camera barely changes scale.
-    return RegistrationSettings(model="similarity", max_features=500, max_area_change=1.05)
 
 
 #: Seconds between two searches of the whole frame for a lost target's look (each describes every
@@ -138,7 +127,7 @@ class KalmanTrackerParams(StageParams):
         " the previous frame to this one before predicting (reads pixels)",
     )
     cmc_registration: RegistrationSettings = Field(
-        default_factory=_cmc_registration,
+        default_factory=consecutive_frames_registration,
         description="the registration of consecutive frames for cmc",
     )
 
@@ -160,8 +149,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.video = video
         self.image = None
         self._frame = 0
-        # The previous frame's scene features (cmc): each frame's are found once.
-        self.previous_features: SceneFeatures | None = None
+        self.frame_motion = FrameMotion(params.cmc_registration) if params.cmc else None
         self.gate = (
             None
             if params.gate_px_at_1080 is None
@@ -186,7 +174,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
                 params.bystanders, params.P0, params.Q, params.R, targets=len(positions)
             )
         )
-        self._remember_scene(None)
+        if self.frame_motion is not None:
+            self.frame_motion.remember(self.image, None)
 
     def associate(
         self, predicted: FloatArray, detections: Detections, rows: IntArray | None = None
@@ -259,8 +248,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
     def step(self, t: int, detections: Detections) -> None:
         """Predict, associate the tracked and tentative targets, re-acquire the others."""
         self._frame = t
-        if self.params.cmc:
-            self._compensate(detections)
+        self._compensate(detections)
         self.bank.predict()
         if self.bystanders is not None:
             self.bystanders.predict()
@@ -360,25 +348,14 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
 
     def _compensate(self, detections: Detections) -> None:
         """Warp the filters by the camera motion from the previous frame (when it registers)."""
-        previous = self.previous_features
-        self._remember_scene(detections.boxes)
-        if previous is None or self.previous_features is None or len(self.target_ids) == 0:
+        if self.frame_motion is None:
             return
-        motion = register_features(previous, self.previous_features, self.params.cmc_registration)
-        if motion.ok:
-            self.bank.warp(motion.matrix)
-            if self.bystanders is not None:
-                self.bystanders.warp(motion.matrix)
-
-    def _remember_scene(self, boxes: FloatArray | None) -> None:
-        """Keep this frame's scene features (outside the head ``boxes``) for the next frame."""
-        if not self.params.cmc:
+        matrix = self.frame_motion.motion(self.image, detections.boxes)
+        if matrix is None or len(self.target_ids) == 0:
             return
-        self.previous_features = (
-            None
-            if self.image is None
-            else scene_features(self.image, boxes, self.params.cmc_registration)
-        )
+        self.bank.warp(matrix)
+        if self.bystanders is not None:
+            self.bystanders.warp(matrix)
 
     def _reacquire(
         self, t: int, detections: Detections, inactive: IntArray, anchors: IntArray, taken: IntArray
@@ -483,7 +460,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2).copy()
         matched = np.asarray(matched_detection, dtype=np.int64).copy()
-        self._remember_scene(None if detections is None else detections.boxes)
+        if self.frame_motion is not None:
+            self.frame_motion.remember(self.image, None if detections is None else detections.boxes)
         if self.bystanders is not None:
             self.bystanders.clear()
         active = self.life.active()
