@@ -9,7 +9,8 @@ start frame, and a target outside the image is not reported on that frame, and n
 target the tracker holds as lost, out-of-view or tentative
 (docs/algorithms/segment-tracker.md#target-lifecycle): those take no part in a gap match either.
 With ``engine.fill_missing_s`` the reports are completed once the video is done: a short absence
-between two reports of one segment is filled in (:mod:`trackfw.filling`).
+between two reports of one segment is filled in, and so are the first frames of a segment before
+a target's first report (:mod:`trackfw.filling`).
 
 The pieces: :class:`trackfw.front.FrameFront` yields one observation per frame (live stages or
 a stage-cache replay), :class:`trackfw.segment.Segment` holds the targets between intervals and

@@ -7,6 +7,16 @@ known, so the frames between can be reported on the straight line from one end t
 ByteTrack and BoT-SORT interpolate their tracks. Only absences inside one segment are filled: on
 either side of an info-less interval the camera points elsewhere, and a straight line between
 the two would cross the view for nothing.
+
+The first frames of a segment are an absence with one end: a target the tracker takes up a few
+frames after b (re-acquired once the detector finds it again, or once its look is clear) was
+there at b as well. When its first report in the segment comes within the same limit after b, it
+is reported from b on, on the straight line fitted to its reports of the next ``max_frames``
+frames, carried back (held at its first point when it has only one). The camera is often still
+settling just after b and moves the image by several pixels a frame; the place where the tracker
+kept the target during the interval (a lost target's expected place) would be a guess. Nothing is
+carried forward into an interval: a target that stopped being reported just before a may have
+left.
 """
 
 from __future__ import annotations
@@ -26,7 +36,7 @@ def fill_missing(
     reported: Sequence[BoolArray],
     max_frames: int,
 ) -> tuple[list[FloatArray], list[BoolArray]]:
-    """Report each target on the frames of its short absences, interpolated linearly.
+    """Report each target on the frames of its short absences.
 
     Args:
         frames: ``(F,)`` increasing frame indices of the frames the loop recorded.
@@ -38,7 +48,10 @@ def fill_missing(
     Returns:
         New positions and reported flags per frame: an absence of at most ``max_frames`` video
         frames between two reported frames of one segment is reported, each frame at the point
-        that divides the two ends' points in proportion to the frames between.
+        that divides the two ends' points in proportion to the frames between; a target first
+        reported at most ``max_frames`` video frames after the first frame of a later segment is
+        reported from that first frame on, on the line fitted to its reports of the
+        ``max_frames`` frames from its first one, carried back.
 
     >>> import numpy as np
     >>> points = [np.array([[0.0, 0.0]]), np.array([[9.0, 9.0]]), np.array([[4.0, 8.0]])]
@@ -48,6 +61,21 @@ def fill_missing(
     ([[2.0, 4.0]], [True])
     >>> fill_missing([10, 11, 12], [0, 0, 1], points, shown, 1)[1][1].tolist()
     [False]
+
+    After an interval (frames 11-19 not recorded), a target first reported one frame after b:
+
+    >>> points = [np.array([[0.0, 0.0]]), np.array([[50.0, 50.0]]), np.array([[7.0, 3.0]])]
+    >>> shown = [np.array([True]), np.array([False]), np.array([True])]
+    >>> filled, flags = fill_missing([10, 20, 21], [0, 1, 1], points, shown, 1)
+    >>> filled[1].tolist(), flags[1].tolist()
+    ([[7.0, 3.0]], [True])
+
+    With two reports the line through them is carried back:
+
+    >>> points.append(np.array([[9.0, 3.0]]))
+    >>> shown.append(np.array([True]))
+    >>> np.round(fill_missing([10, 20, 21, 22], [0, 1, 1, 1], points, shown, 1)[0][1], 6).tolist()
+    [[5.0, 3.0]]
     """
     filled = [np.array(p, dtype=np.float64, copy=True) for p in positions]
     flags = [np.array(r, dtype=bool, copy=True) for r in reported]
@@ -69,7 +97,39 @@ def fill_missing(
                 share = float(frame_index[row] - frame_index[before]) / span
                 filled[row][target] = (1.0 - share) * start + share * end
                 flags[row][target] = True
+    _fill_segment_starts(frame_index, segment_index, table, max_frames, filled, flags)
     return filled, flags
+
+
+def _fill_segment_starts(
+    frame_index: np.ndarray,
+    segment_index: np.ndarray,
+    table: np.ndarray,
+    max_frames: int,
+    filled: list[FloatArray],
+    flags: list[BoolArray],
+) -> None:
+    """Report from b on each target first reported at most ``max_frames`` after the first frame
+    b of a segment that follows an interval, on the line fitted to its early reports
+    (``table``: ``(F, K)`` reported flags before any filling; ``filled`` and ``flags`` are
+    updated)."""
+    starts = np.flatnonzero(np.diff(segment_index) != 0) + 1
+    for first in starts.tolist():
+        rows = np.flatnonzero(segment_index == segment_index[first])
+        for target in np.flatnonzero(~table[first]).tolist():
+            shown = rows[table[rows, target]]
+            if len(shown) == 0 or frame_index[shown[0]] - frame_index[first] > max_frames:
+                continue
+            early = shown[frame_index[shown] - frame_index[shown[0]] <= max_frames]
+            times = frame_index[early].astype(np.float64)
+            points = np.stack([filled[row][target] for row in early.tolist()])
+            if len(early) >= 2:
+                slope, intercept = np.polyfit(times, points, 1)
+            else:
+                slope, intercept = np.zeros(2), points[0]
+            for row in range(first, int(shown[0])):
+                filled[row][target] = intercept + slope * float(frame_index[row])
+                flags[row][target] = True
 
 
 __all__ = ["fill_missing"]

@@ -25,8 +25,8 @@ def test_only_short_absences_inside_one_segment_are_filled() -> None:
             [False, False],  # target 0: one frame absent, filled
             [True, False],  # target 1: absent 1..3, three frames, longer than max_frames
             [True, False],
-            [False, True],  # target 0: absent across the segment change 4 -> 5, not filled
-            [False, True],
+            [False, True],  # target 0: absent at the end of segment 0, not carried forward
+            [False, True],  # target 0: absent on b (5), reported from 6: carried back to 5
             [True, False],  # target 1: absent on the last two frames, no end, not filled
             [True, False],
             [True, False],
@@ -39,15 +39,38 @@ def test_only_short_absences_inside_one_segment_are_filled() -> None:
         [True, False],
         [True, False],
         [False, True],
-        [False, True],
+        [True, True],
         [True, False],
         [True, False],
         [True, False],
     ]
+    assert np.allclose(filled[5][0], [50.0, 0.0])
     # Between the reports at frames 0 and 2 (points 0 and 20) the filled point lies halfway.
     assert filled[1][0].tolist() == [10.0, 0.0]
     # The inputs are left as they were.
     assert not shown[1][0] and positions[1][1].tolist() == [0.0, 10.0]
+
+
+def test_a_target_taken_up_soon_after_b_is_reported_from_b_at_its_first_point() -> None:
+    # Frames 0-1 are segment 0; 10-15 follow an interval. Target 0 is first reported on 12 (two
+    # frames after b) and walks 3 px a frame; target 1 first on 14 (four frames after b); target
+    # 2 on b itself; target 3 only on 12.
+    frames = [0, 1, 10, 11, 12, 13, 14, 15]
+    segments = [0, 0, 1, 1, 1, 1, 1, 1]
+    positions = [np.array([[3.0 * t, 0.0], [0.0, t], [t, t], [50.0, t]]) for t in frames]
+    shown = _table(
+        [[True] * 4, [True] * 4] + [[t >= 12, t >= 14, True, t == 12] for t in frames[2:]]
+    )
+    filled, flags = fill_missing(frames, segments, positions, shown, 2)
+    assert [bool(f[0]) for f in flags[2:4]] == [True, True]
+    # Carried back along the line of its reports on 12-14, not held at its first point.
+    assert np.allclose([f[0] for f in filled[2:4]], [[30.0, 0.0], [33.0, 0.0]])
+    # Four frames after b is longer than max_frames: not filled.
+    assert [bool(f[1]) for f in flags[2:6]] == [False, False, False, False]
+    assert filled[2][2].tolist() == [10.0, 10.0]
+    # A single early report: held at it.
+    assert [f[3].tolist() for f in filled[2:4]] == [[50.0, 12.0], [50.0, 12.0]]
+    assert [bool(f[3]) for f in flags[2:6]] == [True, True, True, False]
 
 
 def test_the_absence_counts_frames_of_the_video_not_recorded_frames() -> None:
