@@ -9,8 +9,8 @@ start frame, and a target outside the image is not reported on that frame, and n
 target the tracker holds as lost, out-of-view or tentative
 (docs/algorithms/segment-tracker.md#target-lifecycle): those take no part in a gap match either.
 With ``engine.fill_missing_s`` the reports are completed once the video is done: a short absence
-between two reports of one segment is filled in, and so are the first frames of a segment before
-a target's first report (:mod:`trackfw.filling`).
+between two reports of one segment is filled in, and with ``engine.fill_after_b_s`` the first
+frames of a segment before a target's first report (:mod:`trackfw.filling`).
 
 The pieces: :class:`trackfw.front.FrameFront` yields one observation per frame (live stages or
 a stage-cache replay), :class:`trackfw.segment.Segment` holds the targets between intervals and
@@ -213,7 +213,10 @@ class Engine:
         front = FrameFront(
             video, stages.detector, stages.classifier, replay, stages_need_pixels(live), progress
         )
-        loop = _OnlineLoop(stages, video, self.targets, self.pipeline.engine.fill_missing_s)
+        engine = self.pipeline.engine
+        loop = _OnlineLoop(
+            stages, video, self.targets, engine.fill_missing_s, engine.fill_after_b_s
+        )
         started = time.perf_counter()
         for observation in front:
             loop.observe(observation)
@@ -257,10 +260,14 @@ class _OnlineLoop:
         video: VideoContext,
         targets: TargetChooser,
         fill_missing_s: float | None = None,
+        fill_after_b_s: float | None = None,
     ) -> None:
         self.stages = stages
         self.fill_missing_frames = (
             0 if fill_missing_s is None else round(fill_missing_s * video.fps)
+        )
+        self.fill_after_b_frames = (
+            0 if fill_after_b_s is None else round(fill_after_b_s * video.fps)
         )
         self.video = video
         self.targets = targets
@@ -364,8 +371,9 @@ class _OnlineLoop:
         )
 
     def _filled(self) -> list[tuple[int, FloatArray, np.ndarray]]:
-        """The reports with short absences filled in (``engine.fill_missing_s``)."""
-        if self.fill_missing_frames <= 0:
+        """The reports with short absences filled in (``engine.fill_missing_s``,
+        ``engine.fill_after_b_s``)."""
+        if self.fill_missing_frames <= 0 and self.fill_after_b_frames <= 0:
             return self.reported
         frames = [t for t, _, _ in self.reported]
         positions, reported = fill_missing(
@@ -374,6 +382,7 @@ class _OnlineLoop:
             [p for _, p, _ in self.reported],
             [r for _, _, r in self.reported],
             self.fill_missing_frames,
+            self.fill_after_b_frames,
         )
         return list(zip(frames, positions, reported, strict=True))
 

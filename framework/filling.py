@@ -1,4 +1,4 @@
-"""Short absences of a target inside a segment, filled in after the video (``engine.fill_missing_s``).
+"""Short absences of a target filled in after the video (``engine.fill_missing_s``, ``engine.fill_after_b_s``).
 
 A detector misses a person for a few frames when someone walks in front of them; the tracker
 then stops reporting the target (docs/algorithms/segment-tracker.md#target-lifecycle) and takes
@@ -8,11 +8,12 @@ ByteTrack and BoT-SORT interpolate their tracks. Only absences inside one segmen
 either side of an info-less interval the camera points elsewhere, and a straight line between
 the two would cross the view for nothing.
 
-The first frames of a segment are an absence with one end: a target the tracker takes up a few
-frames after b (re-acquired once the detector finds it again, or once its look is clear) was
-there at b as well. When its first report in the segment comes within the same limit after b, it
-is reported from b on, on the straight line fitted to its reports of the next ``max_frames``
-frames, carried back (held at its first point when it has only one). The camera is often still
+The first frames of a segment are an absence with one end (``engine.fill_after_b_s``): a target
+the tracker takes up a few frames after b (re-acquired once the detector finds it again, or once
+its look is clear) was there at b as well. When its first report in the segment comes within
+that limit after b, it is reported from b on, on the straight line fitted to its reports of the
+same length of time from its first one, carried back (held at its first point when it has only
+one). The camera is often still
 settling just after b and moves the image by several pixels a frame; the place where the tracker
 kept the target during the interval (a lost target's expected place) would be a guess. Nothing is
 carried forward into an interval: a target that stopped being reported just before a may have
@@ -35,6 +36,7 @@ def fill_missing(
     positions: Sequence[FloatArray],
     reported: Sequence[BoolArray],
     max_frames: int,
+    after_b_frames: int = 0,
 ) -> tuple[list[FloatArray], list[BoolArray]]:
     """Report each target on the frames of its short absences.
 
@@ -43,15 +45,18 @@ def fill_missing(
         segments: ``(F,)`` the segment (counted from 0) each of those frames belongs to.
         positions: per frame, ``(K, 2)`` the position of every target.
         reported: per frame, ``(K,)`` True where the target is reported.
-        max_frames: longest absence filled, in frames of the video; 0 fills nothing.
+        max_frames: longest absence filled between two reports, in frames of the video; 0
+            fills none.
+        after_b_frames: longest absence filled at the start of a segment that follows an
+            interval, in frames of the video; 0 fills none.
 
     Returns:
         New positions and reported flags per frame: an absence of at most ``max_frames`` video
         frames between two reported frames of one segment is reported, each frame at the point
         that divides the two ends' points in proportion to the frames between; a target first
-        reported at most ``max_frames`` video frames after the first frame of a later segment is
-        reported from that first frame on, on the line fitted to its reports of the
-        ``max_frames`` frames from its first one, carried back.
+        reported at most ``after_b_frames`` video frames after the first frame of a later segment
+        is reported from that first frame on, on the line fitted to its reports of the
+        ``after_b_frames`` frames from its first one, carried back.
 
     >>> import numpy as np
     >>> points = [np.array([[0.0, 0.0]]), np.array([[9.0, 9.0]]), np.array([[4.0, 8.0]])]
@@ -66,7 +71,7 @@ def fill_missing(
 
     >>> points = [np.array([[0.0, 0.0]]), np.array([[50.0, 50.0]]), np.array([[7.0, 3.0]])]
     >>> shown = [np.array([True]), np.array([False]), np.array([True])]
-    >>> filled, flags = fill_missing([10, 20, 21], [0, 1, 1], points, shown, 1)
+    >>> filled, flags = fill_missing([10, 20, 21], [0, 1, 1], points, shown, 1, 1)
     >>> filled[1].tolist(), flags[1].tolist()
     ([[7.0, 3.0]], [True])
 
@@ -74,12 +79,12 @@ def fill_missing(
 
     >>> points.append(np.array([[9.0, 3.0]]))
     >>> shown.append(np.array([True]))
-    >>> np.round(fill_missing([10, 20, 21, 22], [0, 1, 1, 1], points, shown, 1)[0][1], 6).tolist()
+    >>> np.round(fill_missing([10, 20, 21, 22], [0, 1, 1, 1], points, shown, 1, 1)[0][1], 6).tolist()
     [[5.0, 3.0]]
     """
     filled = [np.array(p, dtype=np.float64, copy=True) for p in positions]
     flags = [np.array(r, dtype=bool, copy=True) for r in reported]
-    if max_frames <= 0 or not frames:
+    if (max_frames <= 0 and after_b_frames <= 0) or not frames:
         return filled, flags
     table = np.stack([np.asarray(r, dtype=bool) for r in reported])  # (F, K)
     frame_index = np.asarray(frames, dtype=np.int64)
@@ -97,7 +102,10 @@ def fill_missing(
                 share = float(frame_index[row] - frame_index[before]) / span
                 filled[row][target] = (1.0 - share) * start + share * end
                 flags[row][target] = True
-    _fill_segment_starts(frame_index, segment_index, table, max_frames, filled, flags)
+    if after_b_frames > 0:
+        _fill_segment_starts(
+            frame_index, segment_index, table, after_b_frames, filled, flags
+        )
     return filled, flags
 
 
@@ -105,22 +113,22 @@ def _fill_segment_starts(
     frame_index: np.ndarray,
     segment_index: np.ndarray,
     table: np.ndarray,
-    max_frames: int,
+    after_b_frames: int,
     filled: list[FloatArray],
     flags: list[BoolArray],
 ) -> None:
-    """Report from b on each target first reported at most ``max_frames`` after the first frame
-    b of a segment that follows an interval, on the line fitted to its early reports
-    (``table``: ``(F, K)`` reported flags before any filling; ``filled`` and ``flags`` are
-    updated)."""
+    """Report from b on each target first reported at most ``after_b_frames`` after the first
+    frame b of a segment that follows an interval, on the line fitted to its reports of the
+    ``after_b_frames`` frames from its first (``table``: ``(F, K)`` reported flags before any
+    filling; ``filled`` and ``flags`` are updated)."""
     starts = np.flatnonzero(np.diff(segment_index) != 0) + 1
     for first in starts.tolist():
         rows = np.flatnonzero(segment_index == segment_index[first])
         for target in np.flatnonzero(~table[first]).tolist():
             shown = rows[table[rows, target]]
-            if len(shown) == 0 or frame_index[shown[0]] - frame_index[first] > max_frames:
+            if len(shown) == 0 or frame_index[shown[0]] - frame_index[first] > after_b_frames:
                 continue
-            early = shown[frame_index[shown] - frame_index[shown[0]] <= max_frames]
+            early = shown[frame_index[shown] - frame_index[shown[0]] <= after_b_frames]
             times = frame_index[early].astype(np.float64)
             points = np.stack([filled[row][target] for row in early.tolist()])
             if len(early) >= 2:

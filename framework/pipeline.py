@@ -71,7 +71,12 @@ class EngineOptions(FiniteModel):
     fill_missing_s: float | None = Field(
         None,
         ge=0.0,
-        description="after the video, a target not reported for at most this long (seconds) between two frames of one segment where it is, is reported on the frames between, on the straight line from one of those points to the other (offline, as ByteTrack interpolates), and a target first reported at most this long after a frame b is reported from b on, on the line of its first reports carried back; null = off, the loop's reports as they were made",
+        description="after the video, a target not reported for at most this long (seconds) between two frames of one segment where it is, is reported on the frames between, on the straight line from one of those points to the other (offline, as ByteTrack interpolates); null = off, the loop's reports as they were made",
+    )
+    fill_after_b_s: float | None = Field(
+        None,
+        ge=0.0,
+        description="after the video, a target first reported at most this long (seconds) after a frame b is reported from b on, on the straight line fitted to its reports of the same length of time from its first one, carried back; null = off",
     )
     infoless_frames: Literal["keep", "drop"] = Field(
         "keep",

@@ -32,7 +32,7 @@ def test_only_short_absences_inside_one_segment_are_filled() -> None:
             [True, False],
         ]
     )
-    filled, flags = fill_missing(frames, segments, positions, shown, 2)
+    filled, flags = fill_missing(frames, segments, positions, shown, 2, 2)
     assert [f.tolist() for f in flags] == [
         [True, True],
         [True, False],
@@ -51,7 +51,7 @@ def test_only_short_absences_inside_one_segment_are_filled() -> None:
     assert not shown[1][0] and positions[1][1].tolist() == [0.0, 10.0]
 
 
-def test_a_target_taken_up_soon_after_b_is_reported_from_b_at_its_first_point() -> None:
+def test_a_target_taken_up_soon_after_b_is_reported_from_b_on_the_line_of_its_first_reports() -> None:
     # Frames 0-1 are segment 0; 10-15 follow an interval. Target 0 is first reported on 12 (two
     # frames after b) and walks 3 px a frame; target 1 first on 14 (four frames after b); target
     # 2 on b itself; target 3 only on 12.
@@ -61,11 +61,12 @@ def test_a_target_taken_up_soon_after_b_is_reported_from_b_at_its_first_point() 
     shown = _table(
         [[True] * 4, [True] * 4] + [[t >= 12, t >= 14, True, t == 12] for t in frames[2:]]
     )
-    filled, flags = fill_missing(frames, segments, positions, shown, 2)
+    assert not any(bool(f[0]) for f in fill_missing(frames, segments, positions, shown, 2)[1][2:4])
+    filled, flags = fill_missing(frames, segments, positions, shown, 2, 2)
     assert [bool(f[0]) for f in flags[2:4]] == [True, True]
     # Carried back along the line of its reports on 12-14, not held at its first point.
     assert np.allclose([f[0] for f in filled[2:4]], [[30.0, 0.0], [33.0, 0.0]])
-    # Four frames after b is longer than max_frames: not filled.
+    # Four frames after b is longer than after_b_frames: not filled.
     assert [bool(f[1]) for f in flags[2:6]] == [False, False, False, False]
     assert filled[2][2].tolist() == [10.0, 10.0]
     # A single early report: held at it.
