@@ -13,11 +13,10 @@ the tracker takes up a few frames after b (re-acquired once the detector finds i
 its look is clear) was there at b as well. When its first report in the segment comes within
 that limit after b, it is reported from b on, on the straight line fitted to its reports of the
 same length of time from its first one, carried back (held at its first point when it has only
-one). The camera is often still
-settling just after b and moves the image by several pixels a frame; the place where the tracker
-kept the target during the interval (a lost target's expected place) would be a guess. Nothing is
-carried forward into an interval: a target that stopped being reported just before a may have
-left.
+one). The camera is often still settling just after b and moves the image by several pixels a
+frame; the place where the tracker kept the target during the interval (a lost target's expected
+place) would be a guess. Nothing is carried forward into an interval: a target that stopped
+being reported just before a may have left.
 """
 
 from __future__ import annotations
@@ -104,7 +103,7 @@ def fill_missing(
                 flags[row][target] = True
     if after_b_frames > 0:
         _fill_segment_starts(
-            frame_index, segment_index, table, after_b_frames, filled, flags
+            frame_index, segment_index, positions, table, after_b_frames, filled, flags
         )
     return filled, flags
 
@@ -112,6 +111,7 @@ def fill_missing(
 def _fill_segment_starts(
     frame_index: np.ndarray,
     segment_index: np.ndarray,
+    positions: Sequence[FloatArray],
     table: np.ndarray,
     after_b_frames: int,
     filled: list[FloatArray],
@@ -130,7 +130,7 @@ def _fill_segment_starts(
                 continue
             early = shown[frame_index[shown] - frame_index[shown[0]] <= after_b_frames]
             times = frame_index[early].astype(np.float64)
-            points = np.stack([filled[row][target] for row in early.tolist()])
+            points = np.stack([positions[row][target] for row in early.tolist()])
             if len(early) >= 2:
                 slope, intercept = np.polyfit(times, points, 1)
             else:

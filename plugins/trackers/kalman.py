@@ -350,8 +350,12 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         """Warp the filters by the camera motion from the previous frame (when it registers)."""
         if self.frame_motion is None:
             return
+        if len(self.target_ids) == 0:
+            # Nothing to warp: keep the frame for the next one without registering it.
+            self.frame_motion.remember(self.image, detections.boxes)
+            return
         matrix = self.frame_motion.motion(self.image, detections.boxes)
-        if matrix is None or len(self.target_ids) == 0:
+        if matrix is None:
             return
         self.bank.warp(matrix)
         if self.bystanders is not None:
