@@ -75,6 +75,11 @@ class AppearanceSettings(FiniteModel):
         " refused ones (same limit and ratio test): after a look-away their old place means"
         " nothing, their look still does",
     )
+    gap_rematch_out_of_view: bool = Field(
+        True,
+        description="with gap_rematch_inactive, the targets that walked out through an image"
+        " edge before the interval join too; false: only the lost ones",
+    )
     anywhere_max_distance: float | None = Field(
         None,
         gt=0.0,

@@ -2,14 +2,15 @@
 
 Used by :class:`trackfw_plugins.trackers.lifecycle.Lifecycle` (the re-entry rule of
 docs/algorithms/segment-tracker.md#target-lifecycle): which edge a position outside the image
-lies beyond, and the cost of a detection near an edge for a target that left through one.
+lies beyond, which lost targets were last seen at an edge, and the cost of a detection near an
+edge for a target that left through one.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from trackfw.arrays import FloatArray, IntArray
+from trackfw.arrays import BoolArray, FloatArray, IntArray
 
 
 def image_edge(positions: FloatArray, width: int, height: int) -> IntArray:
@@ -32,6 +33,35 @@ def image_edge(positions: FloatArray, width: int, height: int) -> IntArray:
         if len(positions)
         else np.zeros(0, dtype=np.int64)
     )
+
+
+def near_edge(
+    positions: FloatArray, width: int, height: int, margins: FloatArray
+) -> tuple[BoolArray, FloatArray]:
+    """Which ``(M, 2)`` positions lie within ``(M,)`` ``margins`` pixels of an image edge, and
+    each position moved to just beyond its nearest edge (``(M,)`` bool, ``(M, 2)``).
+
+    >>> near, beyond = near_edge(np.array([[3.0, 50.0], [50.0, 50.0], [97.0, 40.0]]), 100, 100,
+    ...                          np.array([5.0, 5.0, 5.0]))
+    >>> near.tolist(), beyond[[0, 2]].tolist()
+    ([True, False, True], [[-1.0, 50.0], [100.0, 40.0]])
+    """
+    inside = np.column_stack(
+        [
+            positions[:, 0],
+            (width - 1) - positions[:, 0],
+            positions[:, 1],
+            (height - 1) - positions[:, 1],
+        ]
+    )
+    nearest = np.argmin(inside, axis=1) if len(positions) else np.zeros(0, dtype=np.int64)
+    near = inside[np.arange(len(positions)), nearest] <= margins
+    beyond = positions.copy()
+    # One pixel outside the edge: inside() is false there, and image_edge names that edge.
+    outside = np.array([-1.0, float(width), -1.0, float(height)])
+    axis = np.array([0, 0, 1, 1])
+    beyond[np.arange(len(positions)), axis[nearest]] = outside[nearest]
+    return near, beyond
 
 
 def border_return_cost(

@@ -480,6 +480,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             if self.params.appearance.gap_rematch_inactive
             else np.zeros(0, dtype=np.int64)
         )
+        if not self.params.appearance.gap_rematch_out_of_view:
+            inactive = inactive[self.life.status[inactive] != OUT_OF_VIEW]
         unlike, returned = check_looks_at_b(
             self.memory,
             self.life,

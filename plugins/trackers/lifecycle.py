@@ -18,7 +18,7 @@ from pydantic import ConfigDict, Field
 from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw.records import LOST, OUT_OF_VIEW, TENTATIVE, TRACKED, VideoContext
 from trackfw.stages import FiniteModel
-from trackfw_plugins.trackers.border_return import border_return_cost, image_edge
+from trackfw_plugins.trackers.border_return import border_return_cost, image_edge, near_edge
 
 #: States whose targets the tracker associates on every frame.
 ACTIVE = (TRACKED, TENTATIVE)
@@ -41,6 +41,14 @@ class LifecycleSettings(FiniteModel):
         " hidden_reach head sides of a detection another target took is hidden behind that"
         " person, not gone: it stays tracked until this long after its last detection (longer"
         " than lost_after_s to help); null = off",
+    )
+    edge_exit_sides: float | None = Field(
+        None,
+        ge=0.0,
+        description="a tracked target lost while its last detection lay within this many of its"
+        " head sides of an image edge walked out through that edge: out of view, not lost"
+        " inside the image (a person leaving is detected, cut by the edge, until the head is"
+        " gone); null = lost where its prediction is",
     )
     hidden_reach: float = Field(
         1.0,
@@ -243,6 +251,11 @@ class Lifecycle:
             )
         tracked = self.status[rows] == TRACKED
         gone = rows[tracked & (t - self.last_matched[rows] > hold)]
+        if settings.edge_exit_sides is not None and len(gone):
+            margins = settings.edge_exit_sides * np.nan_to_num(self.size[gone], nan=0.0)
+            at_edge, beyond = near_edge(self.anchor[gone], self.width, self.height, margins)
+            self._left(t, gone[at_edge], beyond[at_edge])
+            gone = gone[~at_edge]
         self.set(gone, LOST, t)
 
     def hidden_behind(

@@ -617,3 +617,59 @@ def test_the_group_places_a_target_that_missed_the_last_frame() -> None:
     # With only one other target seen there is no group to place it.
     tracker.step(3, _seen(GROUP[[0]]))
     assert len(tracker.life.group_places(4, rows, tracker.bank.positions)[0]) == 0
+
+
+@pytest.mark.parametrize("edge_exit_sides", [None, 1.0])
+def test_a_target_lost_at_the_image_edge_walked_out_through_it(
+    edge_exit_sides: float | None,
+) -> None:
+    # Target 1's last head lay 20 px inside the right edge (30 px heads), target 2's in the
+    # middle; both vanish. With edge_exit_sides the first has walked out (out of view, right
+    # edge); the second is lost inside the image either way.
+    group = np.array([[1259.0, 300.0], [600.0, 300.0], [700.0, 320.0]])
+    tracker = _tracker_at(group, lost_after_s=0.2, edge_exit_sides=edge_exit_sides)
+    tracker.step(1, _seen(group))
+    for t in range(2, 10):
+        tracker.step(t, _seen(group[2:]))
+    if edge_exit_sides is None:
+        assert tracker.statuses() == ["lost", "lost", "tracked"]
+    else:
+        assert tracker.statuses() == ["out-of-view", "lost", "tracked"]
+        assert tracker.life.exit_side[0] == 1  # the right edge
+        assert not tracker.life.inside(tracker.positions()[:1])[0]
+
+
+@pytest.mark.parametrize("out_of_view", [True, False])
+def test_a_target_that_walked_out_before_the_interval_joins_the_look_rematch_only_if_asked(
+    out_of_view: bool,
+) -> None:
+    # Red leaves through the right edge before a; at b a red head stands in the group. With
+    # gap_rematch_out_of_view (the default) red takes it by look; without, a target that walked
+    # out is not looked for at b (on TUD it took a bystander that looked alike).
+    params = {
+        "appearance": {
+            "descriptor": "patch",
+            "max_distance": 0.3,
+            "gap_max_distance": 0.3,
+            "gap_rematch_inactive": True,
+            "gap_rematch_out_of_view": out_of_view,
+        },
+        "lifecycle": {"lost_after_s": 0.2, "edge_exit_sides": 1.5},
+    }
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    group = np.array([[1230.0, 300.0], [600.0, 300.0], [700.0, 320.0]])
+    tracker.initialise(0, np.array([1, 2, 3]), group)
+    colours = (RED, GREEN, BLUE)
+    tracker.see(_painted([(x, y, c) for (x, y), c in zip(group, colours, strict=True)]))
+    tracker.step(1, _seen(group, [40.0, 30.0, 30.0]))
+    for t in range(2, 12):
+        tracker.see(_painted([(*group[1], GREEN), (*group[2], BLUE)]))
+        tracker.step(t, _seen(group[1:]))
+    assert tracker.statuses() == ["out-of-view", "tracked", "tracked"]
+    at_b = np.array([[800.0, 500.0], [600.0, 500.0], [700.0, 520.0]])
+    tracker.see(_painted([(x, y, c) for (x, y), c in zip(at_b, colours, strict=True)]))
+    positions = np.vstack([tracker.positions()[0], at_b[1:]])
+    tracker.reinitialise(40, positions, np.array([-1, 1, 2]), _seen(at_b))
+    expected = "tracked" if out_of_view else "out-of-view"
+    assert tracker.statuses() == [expected, "tracked", "tracked"]
