@@ -50,6 +50,12 @@ class LifecycleSettings(FiniteModel):
         " inside the image (a person leaving is detected, cut by the edge, until the head is"
         " gone); null = lost where its prediction is",
     )
+    scale_offsets_at_b: bool = Field(
+        False,
+        description="at b, the group's stored offsets between targets follow the camera's change"
+        " of scale (the factor that rescales the head sizes): a lost target is then expected"
+        " where the zoomed pattern puts it, not where the old one did",
+    )
     hidden_reach: float = Field(
         1.0,
         gt=0.0,
@@ -372,6 +378,18 @@ class Lifecycle:
         factor = float(np.median(sizes[known] / self.size[rows][known]))
         self.size = self.size * factor
         return factor
+
+    def scale_offsets(self, factor: float) -> None:
+        """Multiply the stored offsets between targets by the camera's change of ``factor``.
+
+        >>> import numpy as np
+        >>> life = Lifecycle.__new__(Lifecycle)
+        >>> life.offsets = np.array([[[0.0, 0.0], [100.0, -20.0]], [[-100.0, 20.0], [0.0, 0.0]]])
+        >>> life.scale_offsets(0.5)
+        >>> life.offsets[0, 1].tolist()
+        [50.0, -10.0]
+        """
+        self.offsets = self.offsets * factor
 
     def size_mismatch(self, rows: IntArray, sizes: FloatArray) -> BoolArray:
         """``(M, N)``: whether detection n (box side ``sizes[n]``) is too large or too small to

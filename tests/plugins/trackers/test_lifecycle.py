@@ -269,6 +269,32 @@ def test_matches_at_b_are_judged_after_the_cameras_change_of_scale() -> None:
     assert [s.matched_detection for s in tracker.states()] == [0, 1, 2]
 
 
+@pytest.mark.parametrize("scale_offsets_at_b", [False, True])
+def test_a_target_lost_before_a_is_expected_where_the_zoomed_pattern_puts_it(
+    scale_offsets_at_b: bool,
+) -> None:
+    # Three targets 300 px apart; the third is lost before a. After the look-away the camera
+    # stands nearer (every head and every offset 1.5 times larger, about the image centre). On
+    # the frame after b the third head is detected where the zoomed pattern puts it: 225 px
+    # right of where the old offsets expect it, beyond its re-acquisition gate.
+    group = np.array([[300.0, 300.0], [600.0, 300.0], [900.0, 300.0]])
+    tracker = _tracker_at(group, lost_after_s=0.2, scale_offsets_at_b=scale_offsets_at_b)
+    for t in range(1, 4):
+        tracker.step(t, _seen(group))
+    for t in range(4, 12):
+        tracker.step(t, _seen(group[:2]))
+    assert tracker.statuses() == ["tracked", "tracked", "lost"]
+    centre = np.array([640.0, 360.0])
+    zoomed = centre + 1.5 * (group - centre)
+    at_b = np.vstack([zoomed[:2], tracker.positions()[2:]])
+    tracker.reinitialise(40, at_b, np.array([0, 1, -1]), _seen(zoomed[:2], [45.0, 45.0]))
+    tracker.step(41, _seen(zoomed, [45.0, 45.0, 45.0]))
+    expected = "tracked" if scale_offsets_at_b else "lost"
+    assert tracker.statuses() == ["tracked", "tracked", expected]
+    if scale_offsets_at_b:
+        assert np.allclose(tracker.positions()[2], zoomed[2], atol=1.0)
+
+
 def test_a_match_at_b_out_of_line_with_the_groups_scale_is_tentative() -> None:
     tracker = _tracker()
     tracker.step(1, _seen(GROUP, [30.0, 30.0, 30.0]))
