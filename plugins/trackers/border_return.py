@@ -54,7 +54,7 @@ def near_edge(
             (height - 1) - positions[:, 1],
         ]
     )
-    nearest = np.argmin(inside, axis=1) if len(positions) else np.zeros(0, dtype=np.int64)
+    nearest = np.argmin(inside, axis=1)
     near = inside[np.arange(len(positions)), nearest] <= margins
     beyond = positions.copy()
     # One pixel outside the edge: inside() is false there, and image_edge names that edge.

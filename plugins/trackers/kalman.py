@@ -471,9 +471,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         active = self.life.active()
         detection_rows = detection_rows_of(matched, detections)
         sides = matched_sides(detection_rows, detections)
-        factor = self.life.rescale_sizes(active, sides[active])
-        if self.params.lifecycle.scale_offsets_at_b:
-            self.life.scale_offsets(factor)
+        self.life.rescale_sizes(active, sides[active])
         mismatch = self.life.size_mismatch(np.arange(len(matched)), sides)
         matched[np.diagonal(mismatch)] = NO_MATCH
         detection_rows[matched == NO_MATCH] = NO_MATCH

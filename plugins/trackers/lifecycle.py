@@ -359,37 +359,32 @@ class Lifecycle:
         ``sizes`` are the ``(M,)`` box sides matched to ``rows`` at b (NaN when none). After a
         look-away the camera may stand nearer or farther, so every head changes size by about
         the same factor: the median of the matched ratios (with two or more of them) rescales
-        every stored size, and the per-target check then compares like with like.
+        every stored size, and the per-target check then compares like with like. With
+        ``scale_offsets_at_b`` the stored offsets between targets, pixels of the same camera,
+        are rescaled by it too.
 
         Returns:
             The factor applied (1.0 when fewer than two matches have a known size).
 
         >>> import numpy as np
         >>> life = Lifecycle.__new__(Lifecycle)
+        >>> life.settings = LifecycleSettings(scale_offsets_at_b=True)
         >>> life.size = np.array([20.0, 25.0, 30.0])
+        >>> life.offsets = np.zeros((3, 3, 2))
+        >>> life.offsets[0, 1] = [100.0, -20.0]
         >>> life.rescale_sizes(np.array([0, 1, 2]), np.array([32.0, 40.0, np.nan]))
         1.6
-        >>> life.size.tolist()
-        [32.0, 40.0, 48.0]
+        >>> life.size.tolist(), life.offsets[0, 1].tolist()
+        ([32.0, 40.0, 48.0], [160.0, -32.0])
         """
         known = ~np.isnan(sizes) & ~np.isnan(self.size[rows]) & (self.size[rows] > 0)
         if known.sum() < 2:
             return 1.0
         factor = float(np.median(sizes[known] / self.size[rows][known]))
         self.size = self.size * factor
+        if self.settings.scale_offsets_at_b:
+            self.offsets = self.offsets * factor
         return factor
-
-    def scale_offsets(self, factor: float) -> None:
-        """Multiply the stored offsets between targets by the camera's change of ``factor``.
-
-        >>> import numpy as np
-        >>> life = Lifecycle.__new__(Lifecycle)
-        >>> life.offsets = np.array([[[0.0, 0.0], [100.0, -20.0]], [[-100.0, 20.0], [0.0, 0.0]]])
-        >>> life.scale_offsets(0.5)
-        >>> life.offsets[0, 1].tolist()
-        [50.0, -10.0]
-        """
-        self.offsets = self.offsets * factor
 
     def size_mismatch(self, rows: IntArray, sizes: FloatArray) -> BoolArray:
         """``(M, N)``: whether detection n (box side ``sizes[n]``) is too large or too small to
