@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from trackfw.arrays import FloatArray, IntArray
+from trackfw.arrays import BoolArray, FloatArray, IntArray
 
 #: Cost given to gated-out pairs before solving; any pair at this cost is dropped afterwards.
 FORBIDDEN_COST = 1.0e6
@@ -71,6 +71,41 @@ def hungarian(
             continue
         assignment[row] = column
     return assignment
+
+
+def outnumbered(cost: FloatArray, gate: float | None = None) -> tuple[BoolArray, IntArray]:
+    """Rows that share their nearest column with other rows that have no other column to take.
+
+    Two people standing close together often give one detection between them: whichever takes
+    it takes the other's motion too. Rows with the same nearest column (within ``gate``) form
+    a group; each column counts for the row nearest to it; a group with fewer columns than
+    rows is outnumbered. Returns ``(K,)`` whether each row of the ``(K, N)`` cost is in an
+    outnumbered group, and ``(K,)`` its nearest column (``-1``: none within the gate).
+
+    >>> rows, nearest = outnumbered(np.array([[6.0, 40.0], [21.0, 30.0], [50.0, 2.0]]))
+    >>> rows.tolist(), nearest.tolist()
+    ([True, True, False], [0, 0, 1])
+    >>> outnumbered(np.array([[12.0, 34.0], [9.0, 22.0]]))[0].tolist()  # a column each
+    [False, False]
+    >>> outnumbered(np.array([[6.0], [21.0]]), gate=20.0)[0].tolist()
+    [False, False]
+    """
+    count = cost.shape[0]
+    limit = np.inf if gate is None else gate
+    nearest = np.full(count, -1, dtype=np.int64)
+    flagged = np.zeros(count, dtype=bool)
+    if cost.size == 0:
+        return flagged, nearest
+    best = np.argmin(cost, axis=1)
+    inside = cost[np.arange(count), best] <= limit
+    nearest[inside] = best[inside]
+    owner = np.argmin(cost, axis=0)
+    owned = cost[owner, np.arange(cost.shape[1])] <= limit
+    for column in np.unique(nearest[nearest >= 0]):
+        group = np.flatnonzero(nearest == column)
+        if len(group) >= 2 and np.count_nonzero(owned & np.isin(owner, group)) < len(group):
+            flagged[group] = True
+    return flagged, nearest
 
 
 def greedy_nearest(cost: FloatArray, gate: float | None = None) -> IntArray:

@@ -88,6 +88,48 @@ def test_a_start_position_off_the_detectors_head_is_taken_with_the_start_gate(
     assert matched == ([0, 1, -1] if start_gate else [-1, -1, -1])
 
 
+def _started_pair(starts: list[list[float]], hold: bool) -> Any:
+    """Targets 1 and 2 given at ``starts``, the start gate of the real pipelines, and the hold."""
+    params = {"start_gate_px_at_1080": 100.0, "start_shared_hold": hold}
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([1, 2]), np.array(starts))
+    return tracker
+
+
+@pytest.mark.parametrize("hold", [False, True])
+def test_two_targets_given_on_one_detection_wait_until_it_splits(hold: bool) -> None:
+    # A stander given at (400, 300) and a walker at (430, 310): the detector gives one box
+    # between them that moves with the walker for three frames (nearest to the stander), then
+    # a box each. Whoever took the shared box took the walker's motion.
+    tracker = _started_pair([[400.0, 300.0], [430.0, 310.0]], hold)
+    for t, x in enumerate([408.0, 418.0, 428.0], start=1):
+        tracker.step(t, _seen([[x, 304.0]]))
+        held = [state.matched_detection for state in tracker.states()]
+        assert held == ([-1, -1] if hold else [0, -1])
+    tracker.step(4, _seen([[446.0, 310.0], [401.0, 300.0]]))
+    matched = [state.matched_detection for state in tracker.states()]
+    assert matched == ([1, 0] if hold else [0, 1])
+    assert tracker.statuses() == ["tracked", "tracked"]
+
+
+@pytest.mark.parametrize("hold", [False, True])
+def test_a_walker_whose_neighbour_shows_up_takes_its_own_detection(hold: bool) -> None:
+    # A stander given at (316, 119) and a walker at (330, 119) (at 720p): the walker's head is
+    # the nearest detection of both until the stander's is found on frame 4; by then each has
+    # a detection nearer to it than to the other, and the usual association takes over.
+    tracker = _started_pair([[316.0, 119.0], [330.0, 119.0]], hold)
+    for t, x in enumerate([342.0, 345.0, 347.0], start=1):
+        tracker.step(t, _seen([[x, 115.0]]))
+    tracker.step(4, _seen([[350.0, 110.0], [321.0, 118.0]]))
+    assert [state.matched_detection for state in tracker.states()] == [1, 0]
+    for t in range(5, 10):
+        tracker.step(t, _seen([[350.0 + 3 * (t - 4), 110.0], [321.0, 118.0]]))
+    states = tracker.states()
+    assert [state.matched_detection for state in states] == [1, 0]
+    assert states[1].position[0] > 360.0
+
+
 def test_lost_target_is_reacquired_with_its_old_id_where_the_group_says() -> None:
     # Target 2 vanishes for 3 s while the camera pans: the whole group drifts 120 px right.
     # It comes back where its offset to the group puts it, 120 px from where it was last
