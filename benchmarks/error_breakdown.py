@@ -6,7 +6,11 @@ the video (ground-truth point or reported point present), one kind:
 
 - ``right``: reported within ``--dist`` of its head;
 - ``missed, detected``: not reported, and a detection of frames.csv lies within ``--near`` of its
-  head (the detector found it, the tracker did not report it);
+  head and nearer to it than to any other head of heads.csv (the detector found it, the
+  tracker did not report it);
+- ``missed, covered``: not reported, and every detection that near is nearer to another head:
+  the target is hidden behind (or merged into the box of) someone else, whose detection it
+  is;
 - ``missed, not detected``: not reported, no detection that near;
 - ``far, on a target`` / ``far, on a bystander`` / ``far, elsewhere``: reported more than
   ``--dist`` from its head, and the reported point lies within ``--dist`` of another target's
@@ -40,6 +44,7 @@ from trackfw_plugins.evaluation.capture import bystander_heads, on_heads
 KINDS = (
     "right",
     "missed, detected",
+    "missed, covered",
     "missed, not detected",
     "far, on a target",
     "far, on a bystander",
@@ -86,6 +91,35 @@ def place_of(point: FloatArray, others: FloatArray, bystanders: FloatArray, dist
     return "elsewhere"
 
 
+def detected_as(
+    own: FloatArray, detections: FloatArray | None, heads: FloatArray, near: float
+) -> str:
+    """Whether a missed head at ``(2,)`` ``own`` was ``detected`` (a detection within ``near``
+    is nearer to it than to every other of the ``(H, 2)`` heads), ``covered`` (every detection
+    that near is nearer to someone else's head) or ``not detected``.
+
+    >>> import numpy as np
+    >>> heads = np.array([[100.0, 50.0], [112.0, 46.0]])
+    >>> detected_as(heads[0], np.array([[101.0, 50.0]]), heads, 22.0)
+    'detected'
+    >>> detected_as(heads[0], np.array([[110.0, 47.0]]), heads, 22.0)
+    'covered'
+    >>> detected_as(heads[0], None, heads, 22.0)
+    'not detected'
+    """
+    if detections is None or len(detections) == 0:
+        return "not detected"
+    close = detections[np.hypot(*(detections - own).T) <= near]
+    if len(close) == 0:
+        return "not detected"
+    mine = np.hypot(*(close - own).T)
+    others = heads[np.hypot(*(heads - own).T) > 1e-6]
+    if len(others) == 0:
+        return "detected"
+    theirs = np.hypot(*(close[:, None, :] - others[None, :, :]).transpose(2, 0, 1)).min(axis=1)
+    return "detected" if (mine <= theirs).any() else "covered"
+
+
 def video_breakdown(
     video: VideoContext, run_video: Path, dist: float, near: float, after: int
 ) -> Counter[tuple[str, str]]:
@@ -103,7 +137,8 @@ def video_breakdown(
         points = truth.targets.get(frame, {})
         truth_ids = np.array(list(points), dtype=np.int64)
         truth_points = np.array(list(points.values()), dtype=np.float64).reshape(-1, 2)
-        bystanders = bystander_heads(truth.heads.get(frame, np.zeros((0, 3))), truth_points)
+        heads = truth.heads.get(frame, np.zeros((0, 3)))
+        bystanders = bystander_heads(heads, truth_points)
         phase = phase_of(frame, truth.intervals, after)
         reported = run.tracks.get(frame, {})
         for target in ids:
@@ -114,7 +149,7 @@ def video_breakdown(
                 truth_points,
                 None if point is None else np.asarray(point[:2], dtype=np.float64),
                 bystanders,
-                detections.get(frame),
+                (detections.get(frame), heads[:, :2]),
                 (dist, near),
             )
             if kind is not None:
@@ -128,13 +163,15 @@ def _kind(
     truth_points: FloatArray,
     point: FloatArray | None,
     bystanders: FloatArray,
-    detections: FloatArray | None,
+    seen: tuple[FloatArray | None, FloatArray],
     limits: tuple[float, float],
 ) -> str | None:
     """The kind of one target on one frame (None: neither in the ground truth nor reported).
 
     ``truth_ids`` and ``(N, 2)`` ``truth_points`` are the frame's ground truth, ``point`` the
-    target's reported ``(2,)`` point, ``limits`` the ``(dist, near)`` distances.
+    target's reported ``(2,)`` point, ``seen`` the frame's ``(D, 2)`` detections (None: no
+    frames.csv row) and ``(H, 2)`` heads of heads.csv, ``limits`` the ``(dist, near)``
+    distances.
     """
     dist, near = limits
     mine = truth_ids == target
@@ -142,13 +179,7 @@ def _kind(
     if own is None and point is None:
         return None
     if point is None:
-        if (
-            detections is not None
-            and len(detections)
-            and np.hypot(*(detections - own).T).min() <= near
-        ):
-            return "missed, detected"
-        return "missed, not detected"
+        return "missed, " + detected_as(own, *seen, near)
     others = truth_points[~mine]
     if own is None:
         return "not in view, " + place_of(point, others, bystanders, dist)

@@ -25,9 +25,10 @@ def _script() -> ModuleType:
     return module
 
 
-def _video(root: Path) -> tuple[Path, Path]:
+def _video(root: Path, cover: bool = False) -> tuple[Path, Path]:
     """Two targets (1 at x=100, 2 at x=300) and a bystander at x=500, frames 0-5; an interval
-    a=2, b=4 (frame 3 info-less). Target 2 leaves after frame 4."""
+    a=2, b=4 (frame 3 info-less). Target 2 leaves after frame 4. With ``cover`` a second
+    bystander stands at x=316 on frame 1, nearer than target 2 to the detection at x=310."""
     video, run = root / "dataset" / "v", root / "runs" / "v"
     video.mkdir(parents=True)
     run.mkdir(parents=True)
@@ -35,6 +36,8 @@ def _video(root: Path) -> tuple[Path, Path]:
     truth[5] = {1: (100.0, 50.0)}
     heads = [(t, k, x, y, 20.0) for t, points in truth.items() for k, (x, y) in points.items()]
     heads += [(t, 9, 500.0, 50.0, 20.0) for t in (0, 1, 2, 4, 5)]
+    if cover:
+        heads.append((1, 8, 316.0, 50.0, 20.0))
     write_annotations(video, truth, heads, [Interval(a=2, b=4)])
     write_meta(video / "meta.json", {"n_frames": 6, "width": 640, "height": 480, "fps": 25})
     reported = {
@@ -72,6 +75,14 @@ def test_each_target_frame_is_counted_as_its_kind(tmp_path: Path) -> None:
         ("right", "after b"): 2,  # frame 4 target 2, frame 5 target 1
         ("not in view, on a target", "after b"): 1,  # frame 5: target 2 left, on 1's head
     }
+
+
+def test_a_miss_whose_detection_is_someone_elses_head_is_covered(tmp_path: Path) -> None:
+    script = _script()
+    video, run = _video(tmp_path, cover=True)
+    counts = script.video_breakdown(load_video(video), run, dist=40.0, near=22.0, after=2)
+    assert counts["missed, covered", "segment"] == 1
+    assert counts["missed, detected", "segment"] == 0
 
 
 def test_the_small_maths_examples_hold() -> None:
