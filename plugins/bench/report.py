@@ -43,6 +43,9 @@ PERCENT_METRICS = ("MOTA", "MOTA-In", "IDF1", "HOTA", "IL-F1")
 PIXEL_METRICS = ("MOTP", "MOTP-In")
 #: "Captured by a non-target" (trackfw_plugins.evaluation.capture), shown where it is defined.
 CAPTURED = "Captured-%"
+#: Ground-truth points reported under the id they were given
+#: (trackfw_plugins.evaluation.given_identity), shown where it is defined.
+NAMED = "Named-%"
 SPEED = ("fps", *(f"ms {kind}" for kind in STAGE_KINDS))
 PAPER_PREFIX = "paper "
 #: The paper's figures beside ours in table.md (every quoted one goes to table.csv).
@@ -51,7 +54,7 @@ HEADERS = {
     "MOTA": "MOTA %", "MOTP": "MOTP px", "MOTA-In": "MOTA-In %", "MOTP-In": "MOTP-In px",
     "IDF1": "IDF1 %", "HOTA": "HOTA %", "IL-F1": "IL-F1 %", "fps": "fps",
     "ms detector": "ms det", "ms classifier": "ms cls", "ms tracker": "ms trk",
-    "ms gap_matcher": "ms gap", CAPTURED: "captured %", "paper MOTA": "paper MOTA %", "paper MOTA-In": "paper MOTA-In %",
+    "ms gap_matcher": "ms gap", CAPTURED: "captured %", NAMED: "named %", "paper MOTA": "paper MOTA %", "paper MOTA-In": "paper MOTA-In %",
 }  # fmt: skip
 
 
@@ -172,7 +175,9 @@ def markdown_table(rows: list[TableRow], distance_px: float = 40.0) -> str:
     quoted = PAPER_COLUMNS if any(row.paper for row in rows) else ()
     # Only a dataset with heads.csv can say whether a target sat on a bystander.
     captured = [CAPTURED] if any(math.isfinite(row.value(CAPTURED)) for row in rows) else []
-    columns = [*METRICS, *captured, *quoted, *SPEED]
+    # Only a run started from the ground truth's ids can be read by the names it was given.
+    named = [NAMED] if any(math.isfinite(row.value(NAMED)) for row in rows) else []
+    columns = [*METRICS, *captured, *named, *quoted, *SPEED]
     header = ["pipeline", "videos", *(HEADERS.get(column, column) for column in columns)]
     lines = [
         "| " + " | ".join(header) + " |",
@@ -188,6 +193,7 @@ def markdown_table(rows: list[TableRow], distance_px: float = 40.0) -> str:
         " (a, b, b+1) of each interval; IL-F1: info-less frame classification; fps and ms per"
         " stage call from summary.json (cached detector/classifier time counted)."
         + (" captured: reported points on a bystander's head." if captured else "")
+        + (" named: ground-truth points reported under the id they were given." if named else "")
         + (
             " paper: Yu et al. 2018, Table 1 (their detector and data), as quoted by the table file."
             if quoted

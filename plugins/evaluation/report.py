@@ -44,6 +44,7 @@ from trackfw_plugins.evaluation.clear_mot import (
     interval_windows,
 )
 from trackfw_plugins.evaluation.detection import DetectionCounts, frame_detection_counts
+from trackfw_plugins.evaluation.given_identity import GivenIdentityCounts, given_identity_counts
 from trackfw_plugins.evaluation.hota import HotaCounts, hota_counts
 from trackfw_plugins.evaluation.identity import IdentityCounts, identity_counts
 from trackfw_plugins.evaluation.infoless import InfolessCounts, infoless_counts, infoless_truth
@@ -61,7 +62,7 @@ UNITS = {
     "MOTA": "%", "MOTP": "px", "MOTA-In": "%", "MOTP-In": "px", "IDF1": "%", "IDP": "%", "IDR": "%",
     "HOTA": "%", "DetA": "%", "AssA": "%", "LocA": "%", "IL-Precision": "%", "IL-Recall": "%",
     "IL-F1": "%", "IL-Misclassified": "frames", "Det-Precision": "%", "Det-Recall": "%", "Det-F1": "%",
-    "Captured": "points", "Captured-%": "%",
+    "Captured": "points", "Captured-%": "%", "Named": "points", "Named-%": "%",
 }  # fmt: skip
 
 
@@ -105,6 +106,7 @@ class VideoEvaluation:
         default_factory=dict
     )
     capture: CaptureCounts | None = None
+    given: GivenIdentityCounts | None = None
 
 
 def _percent(value: float) -> float:
@@ -122,6 +124,7 @@ def _metrics_row(
     sensitivity: dict[float, tuple[ClearMotCounts, ClearMotCounts | None]],
     with_detection: bool,
     capture: CaptureCounts | None = None,
+    given: GivenIdentityCounts | None = None,
 ) -> dict[str, float]:
     """One table row from counts: ratios in percent, MOTP in pixels, NaN where undefined."""
     nan = float("nan")
@@ -158,6 +161,10 @@ def _metrics_row(
         # Reported points on a bystander's head (capture.py); needs heads.csv.
         "Captured": float(capture.captured) if capture is not None else nan,
         "Captured-%": _percent(capture.share) if capture is not None else nan,
+        # Ground-truth points reported under the id they were given (given_identity.py); only
+        # for runs whose targets were given with the ground truth's ids.
+        "Named": float(given.named) if given is not None else nan,
+        "Named-%": _percent(given.share) if given is not None else nan,
     }
     if with_detection:
         row["Det-Precision"] = _percent(detection.precision) if detection is not None else nan
@@ -195,6 +202,7 @@ class DatasetEvaluation:
                 sensitivity=video.sensitivity,
                 with_detection=self.settings.detections,
                 capture=video.capture,
+                given=video.given,
             )
             rows.append({"video": video.name, **metrics})
         return rows
@@ -224,9 +232,12 @@ class DatasetEvaluation:
         hota: HotaCounts | None = None
         sensitivity: dict[float, tuple[ClearMotCounts, ClearMotCounts | None]] = {}
         capture: CaptureCounts | None = None
+        given: GivenIdentityCounts | None = None
         for video in self.videos:
             if video.capture is not None:
                 capture = video.capture if capture is None else capture + video.capture
+            if video.given is not None:
+                given = video.given if given is None else given + video.given
             clear = clear + video.clear
             identity = identity + video.identity
             if video.infoless is not None:
@@ -251,6 +262,7 @@ class DatasetEvaluation:
             sensitivity=sensitivity,
             with_detection=self.settings.detections,
             capture=capture,
+            given=given,
         )
         return {"video": "pooled", **metrics}
 
@@ -350,6 +362,9 @@ def evaluate_video(
             sequence, video.ground_truth.heads, settings.distance_px, settings.detection_match_ratio
         )
         if video.ground_truth.heads
+        else None,
+        given=given_identity_counts(sequence, settings.distance_px)
+        if isinstance(run.summary, dict) and run.summary.get("initialised_from") == "gt"
         else None,
     )
 

@@ -50,6 +50,7 @@ def write_run(
     detections: Mapping[int, np.ndarray] | None = None,
     status: Mapping[int, str] | None = None,
     classifier: bool = True,
+    initialised_from: str | None = None,
 ) -> Path:
     """A run folder: tracks.txt (80x80 boxes around the points) and frames.csv (every frame).
 
@@ -83,6 +84,8 @@ def write_run(
         "pipeline": "test",
         "pipeline_hash": "0123456789ab",
     }
+    if initialised_from is not None:
+        summary["initialised_from"] = initialised_from
     (folder / "summary.json").write_text(json.dumps(summary) + "\n", encoding="utf-8")
     (folder / "gaps.json").write_text("[]\n", encoding="utf-8")
     return folder
