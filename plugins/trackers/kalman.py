@@ -92,11 +92,11 @@ class KalmanTrackerParams(StageParams):
     )
     start_shared_hold: bool = Field(
         False,
-        description="two targets not yet seen since their given start positions whose nearest"
-        " detection is the same one both take nothing and hold their given positions (as if"
-        " hidden) until each has a detection of its own: one box for two people who stand"
-        " close together moves with one of them, and the target that took it would follow"
-        " the other person",
+        description="targets not yet seen since their given start positions that share their"
+        " nearest detection, with fewer detections than targets among them, take nothing and"
+        " hold their given positions (as if hidden) until each has a detection of its own: one"
+        " box for two people who stand close together moves with one of them, and the target"
+        " that took it would follow the other person",
     )
     unmatched_cost_gates: float | None = Field(
         None,
