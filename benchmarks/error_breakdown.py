@@ -40,6 +40,7 @@ from trackfw.errors import UserError
 from trackfw.formats.run import read_run
 from trackfw.records import Interval, VideoContext
 from trackfw_plugins.evaluation.capture import bystander_heads, on_heads
+from trackfw_plugins.maths.assignment import distance_matrix
 
 KINDS = (
     "right",
@@ -116,7 +117,7 @@ def detected_as(
     others = heads[np.hypot(*(heads - own).T) > 1e-6]
     if len(others) == 0:
         return "detected"
-    theirs = np.hypot(*(close[:, None, :] - others[None, :, :]).transpose(2, 0, 1)).min(axis=1)
+    theirs = distance_matrix(close, others).min(axis=1)
     return "detected" if (mine <= theirs).any() else "covered"
 
 

@@ -214,18 +214,22 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             self._add_group_cost(cost, targets, detections.points)
         if self.params.association == "nearest":
             return greedy_nearest(cost, self.gate)
-        start = self.params.start_gate_px_at_1080
+        start_gate = self._start_gate()
         # Until a detection supports a target its gate may be wider (Lifecycle.unseen).
         unseen = self.life.unseen(targets)
-        if start is None or self.gate is None or not unseen.any():
+        if start_gate is None or self.gate is None or not unseen.any():
             return self._hungarian_with_bystanders(cost, self.gate, detections.points)
         # Beyond the usual gate only a clearly nearest detection: another one nearby may be a
         # bystander whose head the detector found while missing the target's.
         clear = nearer_by_ratio(cost, START_NEARER_RATIO)
-        start_gate = start * self.video.height / 1080.0
         wide = unseen[:, None] & clear & (cost <= start_gate)
         gated = np.where((cost <= self.gate) | wide, cost, np.inf)
         return self._hungarian_with_bystanders(gated, start_gate, detections.points)
+
+    def _start_gate(self) -> float | None:
+        """``start_gate_px_at_1080`` in this video's pixels (None: not set)."""
+        start = self.params.start_gate_px_at_1080
+        return None if start is None else start * self.video.height / 1080.0
 
     def _add_group_cost(self, cost: FloatArray, targets: IntArray, points: FloatArray) -> None:
         """Blend into ``cost`` (``(K, N)``, rows ``targets``) the group's opinion on the targets
@@ -337,10 +341,9 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         unseen = np.flatnonzero(self.life.unseen(active))
         if len(unseen) < 2:
             return held, none, none
-        start = self.params.start_gate_px_at_1080
-        gate = self.gate if start is None else start * self.video.height / 1080.0
         cost = distance_matrix(self.bank.positions[active[unseen]], detections.points)
-        sharing, nearest = outnumbered(cost, gate)
+        start_gate = self._start_gate()
+        sharing, nearest = outnumbered(cost, self.gate if start_gate is None else start_gate)
         held[unseen[sharing]] = True
         shared, first = np.unique(nearest[sharing], return_index=True)
         return held, shared, active[unseen[sharing][first]]
