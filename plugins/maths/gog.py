@@ -16,6 +16,7 @@ pooled descriptors of the interval and L2-normalised (:func:`normalise_gog`).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import AbstractContextManager
 from functools import lru_cache
 from typing import Any, cast
@@ -26,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from threadpoolctl import ThreadpoolController
 
 from trackfw.arrays import FloatArray
+from trackfw_plugins.detectors.head_scorer import resolve_threads
 from trackfw_plugins.maths.lomo import rgb_to_hsv
 from trackfw_plugins.maths.reid_crop import normalise_blocks
 
@@ -256,7 +258,12 @@ def single_threaded_blas() -> AbstractContextManager[Any]:
 def gog_colour_descriptor(image_rgb: NDArray[np.uint8], colour_space: str) -> FloatArray:
     """Raw GOG descriptor for one colour space: 7567 values (4921 for nRnG) on 128×48."""
     with single_threaded_blas():
-        return region_gaussians(patch_gaussians(pixel_features(image_rgb, colour_space)))
+        return _colour_descriptor(image_rgb, colour_space)
+
+
+def _colour_descriptor(image_rgb: NDArray[np.uint8], colour_space: str) -> FloatArray:
+    """:func:`gog_colour_descriptor` under the caller's BLAS limit."""
+    return region_gaussians(patch_gaussians(pixel_features(image_rgb, colour_space)))
 
 
 def gog_block_sizes() -> tuple[int, ...]:
@@ -286,21 +293,48 @@ def gog_descriptor(
         ``(27622,)`` for 128×48 and all four colour spaces; normalise with :func:`normalise_gog`
         before computing distances.
     """
+    image_rgb = _rgb_crop(image_bgr)
+    with single_threaded_blas():
+        return np.concatenate([_colour_descriptor(image_rgb, space) for space in colour_spaces])
+
+
+def _rgb_crop(image_bgr: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """The ``(H, W, 3)`` uint8 BGR crop as contiguous RGB (checked)."""
     image = np.asarray(image_bgr)
     if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
         raise ValueError(f"expected an (H, W, 3) uint8 BGR crop, got {image.shape} {image.dtype}")
-    image_rgb = np.ascontiguousarray(image[..., ::-1])
-    return np.concatenate([gog_colour_descriptor(image_rgb, space) for space in colour_spaces])
+    return np.ascontiguousarray(image[..., ::-1])
 
 
-def gog_descriptors(images_bgr: ArrayLike) -> FloatArray:
-    """Raw GOG descriptors of ``(P, H, W, 3)`` uint8 BGR crops -> ``(P, 27622)``."""
+def gog_descriptors(images_bgr: ArrayLike, workers: int = 0) -> FloatArray:
+    """Raw GOG descriptors of ``(P, H, W, 3)`` uint8 BGR crops -> ``(P, 27622)``.
+
+    Each (crop, colour space) is one task, run on ``workers`` threads (0: as many as
+    :func:`~trackfw_plugins.detectors.head_scorer.resolve_threads` allows): a gap's few dozen
+    crops take seconds on one core, and NumPy's batched eigendecompositions and running sums
+    release the GIL. Every task computes what it would alone, so the result does not depend on
+    ``workers``.
+    """
     images = np.asarray(images_bgr)
     if images.ndim != 4:
         raise ValueError(f"expected (P, H, W, 3) crops, got shape {images.shape}")
     if len(images) == 0:
         return np.zeros((0, sum(gog_block_sizes())))
-    return np.stack([gog_descriptor(image) for image in images])
+    crops = [_rgb_crop(image) for image in images]
+    tasks = [(crop, space) for crop in crops for space in COLOUR_SPACES]
+    threads = min(resolve_threads(workers), len(tasks))
+    # One BLAS limit around the pool: threadpoolctl's limit is process-wide, and workers
+    # entering and leaving their own would restore each other's settings out of order.
+    with single_threaded_blas():
+        if threads == 1:
+            parts = [_colour_descriptor(crop, space) for crop, space in tasks]
+        else:
+            with ThreadPoolExecutor(threads, thread_name_prefix="trackfw-gog") as pool:
+                parts = list(pool.map(lambda task: _colour_descriptor(*task), tasks))
+    per_crop = len(COLOUR_SPACES)
+    return np.stack(
+        [np.concatenate(parts[k : k + per_crop]) for k in range(0, len(parts), per_crop)]
+    )
 
 
 def normalise_gog(

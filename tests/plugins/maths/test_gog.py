@@ -10,6 +10,7 @@ from trackfw_plugins.maths.gog import (
     gog_block_sizes,
     gog_colour_descriptor,
     gog_descriptor,
+    gog_descriptors,
     half_vectorise,
     normalise_gog,
     patch_gaussians,
@@ -28,6 +29,15 @@ def test_dimensions() -> None:
     flat = gog_descriptor(np.full((128, 48, 3), 90, dtype=np.uint8))
     assert flat.shape == (27622,)
     assert np.all(np.isfinite(flat))  # a constant crop must not break the SPD embedding
+
+
+def test_descriptors_on_threads_are_those_of_one_crop_at_a_time() -> None:
+    rng = np.random.default_rng(3)
+    crops = np.stack([person_image(rng, head=False) for _ in range(3)])
+    one_by_one = np.stack([gog_descriptor(crop) for crop in crops])
+    np.testing.assert_array_equal(gog_descriptors(crops, workers=1), one_by_one)
+    np.testing.assert_array_equal(gog_descriptors(crops, workers=3), one_by_one)
+    assert gog_descriptors(crops[:0], workers=2).shape == (0, 27622)
 
 
 def test_pixel_features() -> None:
