@@ -50,7 +50,10 @@ class ReidParams(StageParams):
         " ONNX path",
     )
     threads: int = Field(
-        0, ge=0, description="person-reid: onnxruntime threads; 0 = the automatic choice"
+        0,
+        ge=0,
+        description="person-reid: crops embedded at once (one onnxruntime thread each); 0 = the"
+        " automatic choice",
     )
     crop: Literal["body", "head80"] = Field(
         "body",

@@ -17,6 +17,7 @@ one after the other through one session; a frame's crops are cut once and embedd
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack
 from importlib import resources
 from pathlib import Path
@@ -156,7 +157,10 @@ class PersonReidEmbedder:
     Args:
         model: ``"0287"``, ``"0248"`` or the path of an ONNX embedder with an NHWC
             ``(1, 256, 128, 3)`` input and a ``(1, D)`` output.
-        threads: onnxruntime intra-op threads; 0 = :func:`resolve_threads`'s choice.
+        threads: crops embedded at once, each on one onnxruntime thread; 0 =
+            :func:`resolve_threads`'s choice. The embedder gains nothing from a second
+            intra-op thread on one crop (16.5 against 16.2 ms on two cores), so a frame's crops
+            run side by side instead; the embeddings are the same bit for bit.
 
     Raises:
         UserError: a missing, unloadable or wrongly shaped model, in one line naming the file.
@@ -172,7 +176,7 @@ class PersonReidEmbedder:
         if not path.is_file():
             raise UserError(f"{path}: model file not found; {expected}.")
         options = onnxruntime.SessionOptions()
-        options.intra_op_num_threads = resolve_threads(threads)
+        options.intra_op_num_threads = 1
         options.inter_op_num_threads = 1
         options.log_severity_level = 3
         try:
@@ -192,17 +196,24 @@ class PersonReidEmbedder:
         self.path = path
         self.session = session
         self.input_name = inputs[0].name
+        self.workers = resolve_threads(threads)
+        self._pool: ThreadPoolExecutor | None = None
+
+    def _embed_one(self, crop: NDArray[np.uint8]) -> FloatArray:
+        """One ``(256, 128, 3)`` crop's raw ``(D,)`` embedding (onnxruntime sessions may run
+        concurrently)."""
+        output = self.session.run(None, {self.input_name: crop[None].astype(np.float32)})[0]
+        return np.asarray(output, dtype=np.float64).reshape(-1)
 
     def embed(self, crops: NDArray[np.uint8]) -> FloatArray:
         """``(P, 256, 128, 3)`` uint8 BGR crops -> ``(P, D)`` unit-length embeddings."""
         crops = np.asarray(crops).reshape(-1, *CROP_SHAPE, 3)
-        rows = [
-            np.asarray(
-                self.session.run(None, {self.input_name: crop[None].astype(np.float32)})[0],
-                dtype=np.float64,
-            ).reshape(-1)
-            for crop in crops
-        ]
+        if len(crops) > 1 and self.workers > 1:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="trackfw-reid")
+            rows = list(self._pool.map(self._embed_one, crops))
+        else:
+            rows = [self._embed_one(crop) for crop in crops]
         if not rows:
             width = self.session.get_outputs()[0].shape[1]
             return np.zeros((0, width if isinstance(width, int) else 0))

@@ -48,6 +48,12 @@ def test_embeddings_have_unit_length_and_identical_crops_distance_zero() -> None
     assert embedder.embed(np.zeros((0, 256, 128, 3), np.uint8)).shape == (0, 256)
 
 
+def test_crops_embedded_side_by_side_are_those_embedded_one_by_one() -> None:
+    crops = np.random.default_rng(1).integers(0, 255, (4, 256, 128, 3)).astype(np.uint8)
+    alone = PersonReidEmbedder("0248", threads=1).embed(crops)
+    np.testing.assert_array_equal(PersonReidEmbedder("0248", threads=3).embed(crops), alone)
+
+
 def test_body_boxes_from_head_boxes_body_boxes_and_fallbacks() -> None:
     points = np.array([[100.0, 50.0], [300.0, 60.0], [500.0, 70.0]])
     detections = Detections(
