@@ -46,7 +46,7 @@ from trackfw_plugins.detectors.boxes import (
     head_boxes_from_bodies,
     non_maximum_suppression,
 )
-from trackfw_plugins.detectors.head_scorer import resolve_threads
+from trackfw_plugins.detectors.head_scorer import cpu_session_options
 
 #: Shipped models by name: file in ``trackfw_plugins/detectors/models``, native input side, and
 #: where the model's boxes put the head centre (share of the box height below its top). Measured
@@ -161,10 +161,7 @@ def load_yolox_session(path: Path, input_size: int, threads: int) -> tuple[objec
     if not path.is_file():
         raise UserError(f"{path}: model file not found; {expected}.")
     data = path.read_bytes()
-    options = onnxruntime.SessionOptions()
-    options.intra_op_num_threads = resolve_threads(threads)
-    options.inter_op_num_threads = 1
-    options.log_severity_level = 3
+    options = cpu_session_options(threads)
 
     def session_of(model_bytes: bytes) -> onnxruntime.InferenceSession:
         try:

@@ -30,7 +30,7 @@ from trackfw.errors import UserError
 from trackfw.formats import HEAD_SIZE_FRACTION
 from trackfw.records import Detections
 from trackfw_plugins.detectors.boxes import body_boxes_from_heads
-from trackfw_plugins.detectors.head_scorer import resolve_threads
+from trackfw_plugins.detectors.head_scorer import cpu_session_options, resolve_threads
 from trackfw_plugins.maths.assignment import distance_matrix
 from trackfw_plugins.maths.reid_crop import crop_box
 
@@ -175,10 +175,7 @@ class PersonReidEmbedder:
         )
         if not path.is_file():
             raise UserError(f"{path}: model file not found; {expected}.")
-        options = onnxruntime.SessionOptions()
-        options.intra_op_num_threads = 1
-        options.inter_op_num_threads = 1
-        options.log_severity_level = 3
+        options = cpu_session_options(1)
         try:
             session = onnxruntime.InferenceSession(
                 str(path), sess_options=options, providers=["CPUExecutionProvider"]
