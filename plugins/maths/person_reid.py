@@ -12,7 +12,8 @@ the inverse of the detectors' head-point rule), 1:2 wide as the networks expect.
 box (a body box, as ``hog`` gives) is used as the body box itself.
 
 The exports fix the batch size at 1 (their reshapes carry it), so the crops of one call are run
-one after the other through one session; a frame's crops are cut once and embedded together.
+one per session call, side by side on a few threads of one session (each call on one onnxruntime
+thread); a frame's crops are cut once and embedded together.
 """
 
 from __future__ import annotations
