@@ -110,14 +110,15 @@ def detected_as(
     """
     if detections is None or len(detections) == 0:
         return "not detected"
-    close = detections[np.hypot(*(detections - own).T) <= near]
-    if len(close) == 0:
+    distances = np.hypot(*(detections - own).T)
+    close = distances <= near
+    if not close.any():
         return "not detected"
-    mine = np.hypot(*(close - own).T)
+    mine = distances[close]
     others = heads[np.hypot(*(heads - own).T) > 1e-6]
     if len(others) == 0:
         return "detected"
-    theirs = distance_matrix(close, others).min(axis=1)
+    theirs = distance_matrix(detections[close], others).min(axis=1)
     return "detected" if (mine <= theirs).any() else "covered"
 
 
