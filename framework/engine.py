@@ -215,7 +215,12 @@ class Engine:
         )
         engine = self.pipeline.engine
         loop = _OnlineLoop(
-            stages, video, self.targets, engine.fill_missing_s, engine.fill_after_b_s
+            stages,
+            video,
+            self.targets,
+            engine.fill_missing_s,
+            engine.fill_after_b_s,
+            engine.fill_after_b_min_reports,
         )
         started = time.perf_counter()
         for observation in front:
@@ -261,6 +266,7 @@ class _OnlineLoop:
         targets: TargetChooser,
         fill_missing_s: float | None = None,
         fill_after_b_s: float | None = None,
+        fill_after_b_min_reports: int = 1,
     ) -> None:
         self.stages = stages
         self.fill_missing_frames = (
@@ -269,6 +275,7 @@ class _OnlineLoop:
         self.fill_after_b_frames = (
             0 if fill_after_b_s is None else round(fill_after_b_s * video.fps)
         )
+        self.fill_after_b_min_reports = fill_after_b_min_reports
         self.video = video
         self.targets = targets
         self.start = targets.start_frame(video)
@@ -383,6 +390,7 @@ class _OnlineLoop:
             [r for _, _, r in self.reported],
             self.fill_missing_frames,
             self.fill_after_b_frames,
+            self.fill_after_b_min_reports,
         )
         return list(zip(frames, positions, reported, strict=True))
 

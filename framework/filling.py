@@ -13,7 +13,9 @@ the tracker takes up a few frames after b (re-acquired once the detector finds i
 its look is clear) was there at b as well. When its first report in the segment comes within
 that limit after b, it is reported from b on, on the straight line fitted to its reports of the
 same length of time from its first one, carried back (held at its first point when it has only
-one). The camera is often still settling just after b and moves the image by several pixels a
+one, unless ``engine.fill_after_b_min_reports`` asks for more: a single report, such as a lost
+target re-found on someone else on a video's last frame, is little evidence that it was there
+at b). The camera is often still settling just after b and moves the image by several pixels a
 frame; the place where the tracker kept the target during the interval (a lost target's expected
 place) would be a guess. Nothing is carried forward into an interval: a target that stopped
 being reported just before a may have left.
@@ -36,6 +38,7 @@ def fill_missing(
     reported: Sequence[BoolArray],
     max_frames: int,
     after_b_frames: int = 0,
+    after_b_min_reports: int = 1,
 ) -> tuple[list[FloatArray], list[BoolArray]]:
     """Report each target on the frames of its short absences.
 
@@ -48,6 +51,8 @@ def fill_missing(
             fills none.
         after_b_frames: longest absence filled at the start of a segment that follows an
             interval, in frames of the video; 0 fills none.
+        after_b_min_reports: fewest reports, within ``after_b_frames`` of its first one, a
+            target needs for that fill.
 
     Returns:
         New positions and reported flags per frame: an absence of at most ``max_frames`` video
@@ -80,6 +85,11 @@ def fill_missing(
     >>> shown.append(np.array([True]))
     >>> np.round(fill_missing([10, 20, 21, 22], [0, 1, 1, 1], points, shown, 1, 1)[0][1], 6).tolist()
     [[5.0, 3.0]]
+
+    Asking for two reports, a lone first report is not carried back:
+
+    >>> fill_missing([10, 20, 21], [0, 1, 1], points[:3], shown[:3], 1, 1, 2)[1][1].tolist()
+    [False]
     """
     filled = [np.array(p, dtype=np.float64, copy=True) for p in positions]
     flags = [np.array(r, dtype=bool, copy=True) for r in reported]
@@ -103,7 +113,13 @@ def fill_missing(
                 flags[row][target] = True
     if after_b_frames > 0:
         _fill_segment_starts(
-            frame_index, segment_index, positions, table, after_b_frames, filled, flags
+            frame_index,
+            segment_index,
+            positions,
+            table,
+            (after_b_frames, after_b_min_reports),
+            filled,
+            flags,
         )
     return filled, flags
 
@@ -113,14 +129,16 @@ def _fill_segment_starts(
     segment_index: np.ndarray,
     positions: Sequence[FloatArray],
     table: np.ndarray,
-    after_b_frames: int,
+    limits: tuple[int, int],
     filled: list[FloatArray],
     flags: list[BoolArray],
 ) -> None:
     """Report from b on each target first reported at most ``after_b_frames`` after the first
     frame b of a segment that follows an interval, on the line fitted to its reports of the
-    ``after_b_frames`` frames from its first (``table``: ``(F, K)`` reported flags before any
-    filling; ``filled`` and ``flags`` are updated)."""
+    ``after_b_frames`` frames from its first, when those reports number at least
+    ``min_reports`` (``limits`` is the pair of both; ``table``: ``(F, K)`` reported flags before
+    any filling; ``filled`` and ``flags`` are updated)."""
+    after_b_frames, min_reports = limits
     starts = np.flatnonzero(np.diff(segment_index) != 0) + 1
     for first in starts.tolist():
         rows = np.flatnonzero(segment_index == segment_index[first])
@@ -129,6 +147,8 @@ def _fill_segment_starts(
             if len(shown) == 0 or frame_index[shown[0]] - frame_index[first] > after_b_frames:
                 continue
             early = shown[frame_index[shown] - frame_index[shown[0]] <= after_b_frames]
+            if len(early) < min_reports:
+                continue
             times = frame_index[early].astype(np.float64)
             points = np.stack([positions[row][target] for row in early.tolist()])
             if len(early) >= 2:

@@ -78,6 +78,11 @@ class EngineOptions(FiniteModel):
         ge=0.0,
         description="after the video, a target first reported at most this long (seconds) after a frame b is reported from b on, on the straight line fitted to its reports of the same length of time from its first one, carried back; null = off",
     )
+    fill_after_b_min_reports: int = Field(
+        1,
+        ge=1,
+        description="fill_after_b_s: a target needs at least this many reports within fill_after_b_s of its first one to be reported from b on (1: a single report is held still back to b; 2: a line is needed, as real.yaml)",
+    )
     infoless_frames: Literal["keep", "drop"] = Field(
         "keep",
         description="batch pipelines: 'keep' gives the batch tracker every frame's detections, info-less frames included (the paper's protocol); 'drop' leaves out the frames the classifier calls info-less",

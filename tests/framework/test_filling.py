@@ -74,6 +74,21 @@ def test_a_target_taken_up_soon_after_b_is_reported_from_b_on_the_line_of_its_fi
     assert [bool(f[3]) for f in flags[2:6]] == [True, True, True, False]
 
 
+def test_a_lone_report_after_b_is_carried_back_only_when_one_report_is_enough() -> None:
+    # Frames 0-1 are segment 0; 10-15 follow an interval. Target 0 is reported on 12 and 13,
+    # target 1 only on 12 (say re-found on someone else, then lost again).
+    frames = [0, 1, 10, 11, 12, 13, 14, 15]
+    segments = [0, 0, 1, 1, 1, 1, 1, 1]
+    positions = [np.array([[2.0 * t, 0.0], [40.0, t]]) for t in frames]
+    shown = _table([[True, True], [True, True]] + [[t in (12, 13), t == 12] for t in frames[2:]])
+    held = fill_missing(frames, segments, positions, shown, 2, 2)[1]
+    assert [bool(f[1]) for f in held[2:4]] == [True, True]
+    filled, flags = fill_missing(frames, segments, positions, shown, 2, 2, 2)
+    assert [bool(f[1]) for f in flags[2:6]] == [False, False, True, False]
+    assert [bool(f[0]) for f in flags[2:4]] == [True, True]
+    assert np.allclose([f[0] for f in filled[2:4]], [[20.0, 0.0], [22.0, 0.0]])
+
+
 def test_the_absence_counts_frames_of_the_video_not_recorded_frames() -> None:
     # An unreadable frame (5) is not recorded; the absence from 4 to 7 is still two frames long
     # in the video (5, 6), so max_frames 1 does not fill it, and the share of frame 6 is 2/3.
@@ -136,3 +151,33 @@ def test_the_engine_reports_targets_through_their_detector_misses(points_video, 
         x, y = filled[t][k]
         tx, ty = truth.targets[t][k]
         assert np.hypot(x - tx, y - ty) < 5.0, (t, k)
+
+
+def test_the_engine_fills_from_b_only_for_targets_with_enough_reports(
+    points_video, tmp_path
+) -> None:
+    # Half the detections missed and a target lost after one missed frame: some targets are
+    # taken up a few frames after b.
+    video = load_video(points_video(n_frames=120, intervals=[(50, 60)], n_targets=3, n_others=0))
+    path = tmp_path / "p.yaml"
+    path.write_text(
+        "name: t\ndescription: t\nstages:\n"
+        "  detector:    {type: oracle, params: {miss_rate: 0.5, seed: 1}}\n"
+        "  classifier:  {type: oracle}\n"
+        "  tracker:     {type: kalman, params: {association: hungarian,"
+        " lifecycle: {lost_after_s: 0.0}}}\n"
+        "  gap_matcher: {type: assignment, params: {method: hungarian, predictor: {type: kalman}}}\n",
+        encoding="utf-8",
+    )
+    registry = load_registry()
+
+    def reported(overrides: list[str]) -> set[tuple[int, int]]:
+        run = Engine(load_pipeline(path, registry, overrides), registry).run_video(video)
+        return {(t, target) for t, target, _, _ in run.tracks}
+
+    plain = reported([])
+    from_b = reported(["engine.fill_after_b_s=0.5"])
+    assert plain < from_b
+    assert all(t >= 60 for t, _ in from_b - plain)  # from b = 60 on, never before the interval
+    # No target has that many reports within 0.5 s: nothing is filled from b.
+    assert reported(["engine.fill_after_b_s=0.5", "engine.fill_after_b_min_reports=100"]) == plain
