@@ -117,7 +117,8 @@ def fill_missing(
             segment_index,
             positions,
             table,
-            (after_b_frames, after_b_min_reports),
+            after_b_frames,
+            after_b_min_reports,
             filled,
             flags,
         )
@@ -129,16 +130,16 @@ def _fill_segment_starts(
     segment_index: np.ndarray,
     positions: Sequence[FloatArray],
     table: np.ndarray,
-    limits: tuple[int, int],
+    after_b_frames: int,
+    min_reports: int,
     filled: list[FloatArray],
     flags: list[BoolArray],
 ) -> None:
     """Report from b on each target first reported at most ``after_b_frames`` after the first
     frame b of a segment that follows an interval, on the line fitted to its reports of the
     ``after_b_frames`` frames from its first, when those reports number at least
-    ``min_reports`` (``limits`` is the pair of both; ``table``: ``(F, K)`` reported flags before
-    any filling; ``filled`` and ``flags`` are updated)."""
-    after_b_frames, min_reports = limits
+    ``min_reports`` (``table``: ``(F, K)`` reported flags before any filling; ``filled`` and
+    ``flags`` are updated)."""
     starts = np.flatnonzero(np.diff(segment_index) != 0) + 1
     for first in starts.tolist():
         rows = np.flatnonzero(segment_index == segment_index[first])

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from trackfw.dataset import load_video
@@ -106,19 +108,26 @@ def test_nothing_is_filled_when_off() -> None:
     assert not fill_missing([0, 1, 2], [0, 0, 0], positions, shown, 0)[1][1][0]
 
 
-def test_the_engine_reports_targets_through_their_detector_misses(points_video, tmp_path) -> None:
-    # Three targets and no bystander: a miss never hands a target to someone else here.
-    video = points_video(n_frames=120, intervals=[(50, 60)], n_targets=3, n_others=0)
-    pipeline_text = (
+def _missing_detector_pipeline(tmp_path: Path, miss_rate: float, seed: int) -> Path:
+    """A pipeline file whose oracle detector misses ``miss_rate`` of the heads and whose tracker
+    loses a target after one frame without a detection."""
+    path = tmp_path / "p.yaml"
+    path.write_text(
         "name: t\ndescription: t\nstages:\n"
-        "  detector:    {type: oracle, params: {miss_rate: 0.3, seed: 3}}\n"
+        f"  detector:    {{type: oracle, params: {{miss_rate: {miss_rate}, seed: {seed}}}}}\n"
         "  classifier:  {type: oracle}\n"
         "  tracker:     {type: kalman, params: {association: hungarian,"
         " lifecycle: {lost_after_s: 0.0}}}\n"
-        "  gap_matcher: {type: assignment, params: {method: hungarian, predictor: {type: kalman}}}\n"
+        "  gap_matcher: {type: assignment, params: {method: hungarian, predictor: {type: kalman}}}\n",
+        encoding="utf-8",
     )
-    path = tmp_path / "p.yaml"
-    path.write_text(pipeline_text, encoding="utf-8")
+    return path
+
+
+def test_the_engine_reports_targets_through_their_detector_misses(points_video, tmp_path) -> None:
+    # Three targets and no bystander: a miss never hands a target to someone else here.
+    video = points_video(n_frames=120, intervals=[(50, 60)], n_targets=3, n_others=0)
+    path = _missing_detector_pipeline(tmp_path, miss_rate=0.3, seed=3)
     registry = load_registry()
     loaded = load_video(video)
     truth = loaded.ground_truth
@@ -159,16 +168,7 @@ def test_the_engine_fills_from_b_only_for_targets_with_enough_reports(
     # Half the detections missed and a target lost after one missed frame: some targets are
     # taken up a few frames after b.
     video = load_video(points_video(n_frames=120, intervals=[(50, 60)], n_targets=3, n_others=0))
-    path = tmp_path / "p.yaml"
-    path.write_text(
-        "name: t\ndescription: t\nstages:\n"
-        "  detector:    {type: oracle, params: {miss_rate: 0.5, seed: 1}}\n"
-        "  classifier:  {type: oracle}\n"
-        "  tracker:     {type: kalman, params: {association: hungarian,"
-        " lifecycle: {lost_after_s: 0.0}}}\n"
-        "  gap_matcher: {type: assignment, params: {method: hungarian, predictor: {type: kalman}}}\n",
-        encoding="utf-8",
-    )
+    path = _missing_detector_pipeline(tmp_path, miss_rate=0.5, seed=1)
     registry = load_registry()
 
     def reported(overrides: list[str]) -> set[tuple[int, int]]:
