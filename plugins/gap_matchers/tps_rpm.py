@@ -14,21 +14,14 @@ from pydantic import Field
 from trackfw.records import NO_MATCH, GapProblem, GapSolution
 from trackfw.stages import GapMatcher, StageParams
 from trackfw_plugins.maths.tps_rpm import match_points
-from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
-
-
-def _kalman3_rpm() -> TpsRpmSettings:
-    # Both sets live in one image frame, so one similarity computed from U is applied to both
-    # (docs/algorithms/tps-rpm.md#coordinate-normalisation); float32 halves the time with the same
-    # matches.
-    return TpsRpmSettings(normalisation="template", precision="float32")
+from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings, one_image_settings
 
 
 class TpsRpmGapParams(StageParams):
     """Parameters of the plain TPS-RPM gap matcher."""
 
     rpm: TpsRpmSettings = Field(
-        default_factory=_kalman3_rpm,
+        default_factory=one_image_settings,
         description="TPS-RPM settings (docs/algorithms/tps-rpm.md#parameters)",
     )
     lambda1: float = Field(

@@ -4,7 +4,8 @@ See docs/algorithms/segment-tracker.md#segment-tracker.
 
 Kalman1 of the paper is ``association: hungarian``, Kalman2 ``association: nearest`` and Kalman3
 ``association: tps-rpm`` (TPS-RPM between all predictions and detections on every frame).
-The filter maths lives in :mod:`trackfw_plugins.maths.kalman`, the association in
+Its parameters are in :mod:`trackfw_plugins.trackers.kalman_params`. The filter maths lives in
+:mod:`trackfw_plugins.maths.kalman`, the association in
 :mod:`trackfw_plugins.maths.assignment`, the targets' states (tracked, lost, out-of-view,
 tentative) and their re-acquisition in :mod:`trackfw_plugins.trackers.lifecycle`, the bystanders'
 anonymous tracks in :mod:`trackfw_plugins.trackers.bystanders`, the look check of the matches at b
@@ -14,10 +15,7 @@ in :mod:`trackfw_plugins.trackers.look_at_b`, camera-motion compensation in
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numpy as np
-from pydantic import Field
 
 from trackfw.arrays import BoolArray, FloatArray, IntArray, UInt8Array
 from trackfw.records import (
@@ -29,21 +27,20 @@ from trackfw.records import (
     TargetState,
     VideoContext,
 )
-from trackfw.stages import StageParams, Tracker
+from trackfw.stages import Tracker
 from trackfw_plugins.maths.assignment import (
     distance_matrix,
     greedy_nearest,
     hungarian,
     outnumbered,
 )
-from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R, KalmanBank
-from trackfw_plugins.maths.scene_registration import RegistrationSettings
+from trackfw_plugins.maths.kalman import KalmanBank
 from trackfw_plugins.maths.tps_rpm import match_points
-from trackfw_plugins.maths.tps_rpm_template import TpsRpmSettings
-from trackfw_plugins.trackers.appearance_memory import AppearanceMemory, AppearanceSettings
-from trackfw_plugins.trackers.bystanders import Bystanders, BystanderSettings
-from trackfw_plugins.trackers.camera_motion import FrameMotion, consecutive_frames_registration
-from trackfw_plugins.trackers.lifecycle import Lifecycle, LifecycleSettings
+from trackfw_plugins.trackers.appearance_memory import AppearanceMemory
+from trackfw_plugins.trackers.bystanders import Bystanders
+from trackfw_plugins.trackers.camera_motion import FrameMotion
+from trackfw_plugins.trackers.kalman_params import KalmanTrackerParams
+from trackfw_plugins.trackers.lifecycle import Lifecycle
 from trackfw_plugins.trackers.look_at_b import (
     box_sides,
     check_looks_at_b,
@@ -51,11 +48,6 @@ from trackfw_plugins.trackers.look_at_b import (
     matched_sides,
 )
 from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio, stands_out
-
-
-def _kalman3_rpm() -> TpsRpmSettings:
-    return TpsRpmSettings(normalisation="template", precision="float32")
-
 
 #: Seconds between two searches of the whole frame for a lost target's look (each describes every
 #: detection of the frame; a returner found within 0.2 s misses at most a few frames).
@@ -65,84 +57,6 @@ LOOK_ANYWHERE_PERIOD_S = 0.2
 #: Beyond the usual gate a not yet seen target takes only a detection at most this times as far
 #: as the next one.
 START_NEARER_RATIO = 1.0 / 3.0
-
-
-class KalmanTrackerParams(StageParams):
-    """Parameters of the Kalman tracker; P0, Q and R default to the paper's values."""
-
-    association: Literal["hungarian", "nearest", "tps-rpm"] = Field(
-        "hungarian",
-        description="'hungarian' (Kalman1), greedy 'nearest' neighbour (Kalman2) or 'tps-rpm' (Kalman3)",
-    )
-    rpm: TpsRpmSettings = Field(
-        default_factory=_kalman3_rpm,
-        description="TPS-RPM settings for association 'tps-rpm' (one similarity from the predictions)",
-    )
-    gate_px_at_1080: float | None = Field(
-        50.0,
-        gt=0.0,
-        description="association gate in pixels at 1080p, scaled by height/1080; null = no gate",
-    )
-    start_gate_px_at_1080: float | None = Field(
-        None,
-        gt=0.0,
-        description="association gate of a target not yet seen by the detector since its given"
-        " start position, for a detection at most a third as far as the next one, pixels at"
-        " 1080p; null = gate_px_at_1080",
-    )
-    start_shared_hold: bool = Field(
-        False,
-        description="targets not yet seen since their given start positions that share their"
-        " nearest detection, with fewer detections than targets among them, take nothing and"
-        " hold their given positions (as if hidden) until each has a detection of its own: one"
-        " box for two people who stand close together moves with one of them, and the target"
-        " that took it would follow the other person",
-    )
-    unmatched_cost_gates: float | None = Field(
-        None,
-        gt=0.0,
-        description="Hungarian association: a target may stay unmatched at this many gates of"
-        " cost, so that the solver takes a chain of matches onto neighbours' detections only"
-        " when it costs less; null = as many targets matched as the gate allows (then one"
-        " missed head in a tight group can shift every target onto a neighbour's detection)",
-    )
-    coasting_group_cost: Literal["none", "mean", "max"] = Field(
-        "none",
-        description="Hungarian association of a target that missed its detection on the previous"
-        " frame: the 'mean' or the 'max' of its distance to its prediction and to where its"
-        " offsets to the targets seen on the previous frame place it (at least two of them);"
-        " 'none' = the prediction alone",
-    )
-    P0: float = Field(PAPER_P0, gt=0.0, description="initial state variance (P0 = P0 * I4)")
-    Q: float = Field(PAPER_Q, gt=0.0, description="transition noise variance (Q = Q * I4)")
-    R: float = Field(PAPER_R, gt=0.0, description="observation noise variance (R = R * I2)")
-    reinit_at_b: bool = Field(
-        True,
-        description="after an interval, restart each filter at its frame-b position with zero velocity and P0",
-    )
-    lifecycle: LifecycleSettings = Field(
-        default_factory=LifecycleSettings,
-        description="when a target is lost, confirmed after an interval, or re-acquired",
-    )
-    appearance: AppearanceSettings = Field(
-        default_factory=AppearanceSettings,
-        description="the appearance check of re-acquisition (reads pixels unless 'none')",
-    )
-    bystanders: BystanderSettings | None = Field(
-        None,
-        description="also follow the heads no target holds, as anonymous tracks that compete"
-        " with the targets in the association (Hungarian only), so that a target whose head"
-        " was missed does not take a passing bystander's; null = off",
-    )
-    cmc: bool = Field(
-        False,
-        description="camera-motion compensation: warp the filters by the scene registration of"
-        " the previous frame to this one before predicting (reads pixels)",
-    )
-    cmc_registration: RegistrationSettings = Field(
-        default_factory=consecutive_frames_registration,
-        description="the registration of consecutive frames for cmc",
-    )
 
 
 class KalmanTracker(Tracker[KalmanTrackerParams]):
