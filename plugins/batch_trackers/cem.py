@@ -24,7 +24,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy.optimize import minimize
 
 from trackfw.arrays import FloatArray
 from trackfw_plugins.batch_trackers.cem_energy import Scene, cross_exclusion_energy, total_energy
@@ -88,6 +87,9 @@ def descend(state: CemState, iterations: int, everything: bool = False) -> None:
         )
         gradient = gradient + params.exclusion_weight * cross_gradient
         return value + params.exclusion_weight * cross, gradient[alive].ravel()
+
+    # Imported here: scipy.optimize would otherwise load with every CLI command (about 0.6 s).
+    from scipy.optimize import minimize
 
     start = free.positions[alive].ravel()
     result = minimize(energy, start, jac=True, method="CG", options={"maxiter": iterations})

@@ -36,13 +36,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydantic import Field
-from scipy.linalg import lstsq
-from scipy.optimize import linear_sum_assignment
 
 from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw.stages import StageParams
 from trackfw_plugins.batch_trackers.tracks import Tracks, VideoDetections
-from trackfw_plugins.maths.assignment import distance_matrix
+from trackfw_plugins.maths.assignment import distance_matrix, linear_sum_assignment
 
 _NO_LINK_COST = 1.0e15
 _SIMILARITY_FLOOR = 1.0e-5
@@ -124,6 +122,9 @@ def hstln(
     hankel = flat[columns]
     x = np.linalg.lstsq(hankel[:, :order], hankel[:, order], rcond=None)[0]
     row_index = np.arange(rows * dims)
+    # Imported here: scipy.linalg would otherwise load with every CLI command (about 0.4 s).
+    from scipy.linalg import lstsq
+
     jacobian = np.zeros((rows * dims + dims * count, dims * count + order))
     jacobian[rows * dims :, : dims * count] = np.diag(mask)
     for _ in range(params.hstln_max_iter):

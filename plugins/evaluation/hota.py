@@ -18,7 +18,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from trackfw.arrays import FloatArray, IntArray
 from trackfw_plugins.evaluation.clear_mot import (
@@ -28,6 +27,7 @@ from trackfw_plugins.evaluation.clear_mot import (
     identity_indices,
     pairwise_distances,
 )
+from trackfw_plugins.maths.assignment import linear_sum_assignment
 from trackfw_plugins.maths.box_overlap import box_iou
 
 #: TrackEval's alpha thresholds 0.05 .. 0.95.

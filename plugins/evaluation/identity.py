@@ -13,7 +13,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from trackfw_plugins.evaluation.clear_mot import (
     FrameObservations,
@@ -21,6 +20,7 @@ from trackfw_plugins.evaluation.clear_mot import (
     default_threshold,
     identity_indices,
 )
+from trackfw_plugins.maths.assignment import linear_sum_assignment
 from trackfw_plugins.maths.confusion import ConfusionCounts, PooledCounts
 
 

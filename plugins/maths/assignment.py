@@ -7,12 +7,27 @@ docs/algorithms/segment-tracker.md#nearest-neighbour-association.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from trackfw.arrays import BoolArray, FloatArray, IntArray
 
 #: Cost given to gated-out pairs before solving; any pair at this cost is dropped afterwards.
 FORBIDDEN_COST = 1.0e6
+
+
+def linear_sum_assignment(cost: FloatArray) -> tuple[IntArray, IntArray]:
+    """scipy's optimal assignment of the ``(K, N)`` ``cost``: ``(min(K, N),)`` rows and columns.
+
+    Every module that solves an assignment calls this one: scipy.optimize is imported on first
+    use, not when the plugins are registered, because its import (about 0.6 s) would otherwise
+    slow every command of the CLI, ``trackfw --help`` included.
+
+    >>> [index.tolist() for index in linear_sum_assignment(np.array([[4.0, 1.0], [2.0, 3.0]]))]
+    [[0, 1], [1, 0]]
+    """
+    from scipy.optimize import linear_sum_assignment as solve
+
+    rows, columns = solve(cost)
+    return np.asarray(rows, dtype=np.int64), np.asarray(columns, dtype=np.int64)
 
 
 def distance_matrix(predictions: FloatArray, detections: FloatArray) -> FloatArray:

@@ -22,10 +22,10 @@ from typing import Literal
 import cv2
 import numpy as np
 from pydantic import ConfigDict, Field
-from scipy.optimize import linear_sum_assignment
 
 from trackfw.arrays import FloatArray
 from trackfw.stages import FiniteModel
+from trackfw_plugins.maths.assignment import linear_sum_assignment
 
 _AREA_EPSILON = 1e-9
 _CHUNK = 64

@@ -23,9 +23,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydantic import Field
-from scipy.optimize import linear_sum_assignment
 
 from trackfw.arrays import BoolArray, FloatArray, IntArray
+from trackfw_plugins.maths.assignment import linear_sum_assignment
 from trackfw_plugins.maths.candidate_windows import WindowSet, WindowSettings, build_windows
 from trackfw_plugins.maths.shape_distance import (
     HullShapeMatcher,

@@ -11,7 +11,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from trackfw.arrays import FloatArray
 from trackfw.errors import UserError
@@ -244,6 +243,9 @@ def _resample(times: FloatArray, xy: FloatArray, query: FloatArray) -> FloatArra
     if len(times) == 1:
         return np.repeat(xy[:1], len(query), axis=0)
     if len(times) >= 3:
+        # Imported here: scipy.interpolate would otherwise load with every CLI command (~1 s).
+        from scipy.interpolate import CubicSpline
+
         inside = CubicSpline(times, xy, axis=0, bc_type="natural")(np.clip(query, times[0], times[-1]))
     else:
         inside = np.stack([np.interp(np.clip(query, times[0], times[-1]), times, xy[:, k])
