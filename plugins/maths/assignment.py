@@ -6,7 +6,10 @@ docs/algorithms/segment-tracker.md#nearest-neighbour-association.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from numpy.typing import NDArray
 
 from trackfw.arrays import BoolArray, FloatArray, IntArray
 
@@ -14,7 +17,7 @@ from trackfw.arrays import BoolArray, FloatArray, IntArray
 FORBIDDEN_COST = 1.0e6
 
 
-def linear_sum_assignment(cost: FloatArray) -> tuple[IntArray, IntArray]:
+def linear_sum_assignment(cost: NDArray[Any]) -> tuple[IntArray, IntArray]:
     """scipy's optimal assignment of the ``(K, N)`` ``cost``: ``(min(K, N),)`` rows and columns.
 
     Every module that solves an assignment calls this one: scipy.optimize is imported on first
