@@ -42,7 +42,9 @@ def parse_size(text: str) -> tuple[int, int]:
         raise UserError(f"--size {text!r}: expected WIDTHxHEIGHT, for example 1280x720.")
     width, height = int(match.group(1)), int(match.group(2))
     if not (160 <= width <= 3840 and 90 <= height <= 2160) or width % 2 or height % 2:
-        raise UserError(f"--size {text!r}: expected even sizes between 160x90 and 3840x2160.")
+        raise UserError(
+            f"--size {text!r}: expected even sizes between 160x90 and 3840x2160."
+        )
     return width, height
 
 
@@ -56,9 +58,7 @@ def parse_range(text: str, option: str) -> tuple[float, float]:
     try:
         low, high = (float(part) for part in parts)
     except ValueError:
-        raise UserError(
-            f"{option} {text!r}: expected two numbers LOW,HIGH such as 0.7,1.4."
-        ) from None
+        raise UserError(f"{option} {text!r}: expected two numbers LOW,HIGH such as 0.7,1.4.") from None
     if not 0 < low <= high:
         raise UserError(f"{option} {text!r}: expected 0 < LOW <= HIGH.")
     return low, high
@@ -73,12 +73,8 @@ def wearer_config(max_pan: float, max_roll: float, scale_range: str) -> WearerCo
     low, high = parse_range(scale_range, "--scale-range")
     if low < 0.3 or high > 3.0:
         raise UserError(f"--scale-range {scale_range!r}: expected factors within 0.3..3.0.")
-    return WearerConfig(
-        max_pan_change=max_pan,
-        min_pan_change=min(6.0, max_pan),
-        max_roll_change=max_roll,
-        scale_range=(low, high),
-    )
+    return WearerConfig(max_pan_change=max_pan, min_pan_change=min(6.0, max_pan),
+                        max_roll_change=max_roll, scale_range=(low, high))
 
 
 def build_plans(
@@ -118,25 +114,12 @@ def build_plans(
         raise UserError(f"--background {background}: no such image file.")
     width, height = size
     if preset in ("paper", "paper-leave"):
-        plans = paper_plan(
-            seed,
-            videos=videos,
-            frames=frames,
-            intervals=intervals,
-            width=width,
-            height=height,
-            fps=fps,
-        )
+        plans = paper_plan(seed, videos=videos, frames=frames, intervals=intervals, width=width,
+                           height=height, fps=fps)
     else:
-        plans = custom_plan(
-            seed,
-            videos=videos or 1,
-            frames=frames or 300,
-            intervals=1 if intervals is None else intervals,
-            width=width,
-            height=height,
-            fps=fps,
-        )
+        plans = custom_plan(seed, videos=videos or 1, frames=frames or 300,
+                            intervals=1 if intervals is None else intervals, width=width,
+                            height=height, fps=fps)
     if targets is not None:
         # Fewer people of interest among the same bystanders: the case of a guard following two
         # people in a crowd.
@@ -144,20 +127,12 @@ def build_plans(
     if preset == "paper-leave":
         # The paper's videos, one target each walking out of view and back; short videos get a
         # longer tail so that the walk fits.
-        plans = with_leavers(
-            plans,
-            1 if leave is None else leave,
-            preset,
-            None if frames is not None else LEAVE_MIN_FRAMES,
-        )
+        plans = with_leavers(plans, 1 if leave is None else leave, preset,
+                             None if frames is not None else LEAVE_MIN_FRAMES)
     elif leave:
         plans = with_leavers(plans, leave)
-    return with_options(
-        plans,
-        None if trajectories is None else str(trajectories),
-        None if background is None else str(background),
-        wearer=wearer,
-    )
+    return with_options(plans, None if trajectories is None else str(trajectories),
+                        None if background is None else str(background), wearer=wearer)
 
 
 def run_synth(
@@ -186,20 +161,9 @@ def run_synth(
     started = time.perf_counter()
     if output_format not in FORMATS:
         raise UserError(f"--format {output_format!r}: expected one of {', '.join(FORMATS)}.")
-    plans = build_plans(
-        preset,
-        seed,
-        videos,
-        frames,
-        intervals,
-        parse_size(size),
-        fps,
-        trajectories,
-        background,
-        wearer_config(max_pan, max_roll, scale_range),
-        leave,
-        targets,
-    )
+    plans = build_plans(preset, seed, videos, frames, intervals, parse_size(size), fps,
+                        trajectories, background, wearer_config(max_pan, max_roll, scale_range),
+                        leave, targets)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: is a file; expected a folder for the dataset.")
     if out.is_dir() and any(out.iterdir()) and not force:
@@ -208,58 +172,36 @@ def run_synth(
     show_preview = (preset is not None) if preview is None else preview
     total_frames = sum(plan.n_frames for plan in plans)
     if echo:
-        typer.echo(
-            f"Generating {len(plans)} video(s), {total_frames} frames, into {out}"
-            f" with {jobs} process(es)..."
-        )
+        typer.echo(f"Generating {len(plans)} video(s), {total_frames} frames, into {out}"
+                   f" with {jobs} process(es)...")
 
     def progress(result: VideoResult, done: int, total: int) -> None:
         if echo:
-            typer.echo(
-                f"  [{done}/{total}] {result.name}: {result.n_frames} frames,"
-                f" {result.n_intervals} interval(s), {result.seconds:.1f} s"
-            )
+            typer.echo(f"  [{done}/{total}] {result.name}: {result.n_frames} frames,"
+                       f" {result.n_intervals} interval(s), {result.seconds:.1f} s")
 
-    results = generate_dataset(
-        plans,
-        out,
-        output_format=output_format,
-        jobs=jobs,
-        preview=show_preview,
-        force=force,
-        progress=progress,
-    )
-    write_json(
-        out / "synth.json",
-        {
-            "generator": "trackfw dataset synth",
-            "preset": preset,
-            "seed": seed,
-            "size": size,
-            "fps": fps,
-            "format": output_format,
-            "trajectories": None if trajectories is None else str(trajectories),
-            "background": None if background is None else str(background),
-            # Only written when targets leave, so that the files of every other dataset stay as
-            # they were before the option existed.
-            **({"leave": plans[0].leave} if plans[0].leave else {}),
-            "videos": [
-                {
-                    "name": plan.name,
-                    "n_frames": plan.n_frames,
-                    "site": plan.site.name,
-                    "intervals": [[i.start + 1, i.end + 1, i.kind] for i in plan.intervals],
-                }
-                for plan in plans
-            ],
-        },
-    )
+    results = generate_dataset(plans, out, output_format=output_format, jobs=jobs,
+                               preview=show_preview, force=force, progress=progress)
+    write_json(out / "synth.json", {
+        "generator": "trackfw dataset synth",
+        "preset": preset,
+        "seed": seed,
+        "size": size,
+        "fps": fps,
+        "format": output_format,
+        "trajectories": None if trajectories is None else str(trajectories),
+        "background": None if background is None else str(background),
+        # Only written when targets leave, so that the files of every other dataset stay as
+        # they were before the option existed.
+        **({"leave": plans[0].leave} if plans[0].leave else {}),
+        "videos": [{"name": plan.name, "n_frames": plan.n_frames, "site": plan.site.name,
+                    "intervals": [[i.start + 1, i.end + 1, i.kind] for i in plan.intervals]}
+                   for plan in plans],
+    })
     if echo:
         elapsed = time.perf_counter() - started
-        typer.echo(
-            f"Done: {len(results)} video(s), {total_frames} frames in {elapsed:.1f} s"
-            f"{' (previews in ' + str(out / 'preview') + ')' if show_preview else ''}."
-        )
+        typer.echo(f"Done: {len(results)} video(s), {total_frames} frames in {elapsed:.1f} s"
+                   f"{' (previews in ' + str(out / 'preview') + ')' if show_preview else ''}.")
     return results
 
 
@@ -269,98 +211,44 @@ def register(dataset_app: typer.Typer) -> None:
     @dataset_app.command("synth")
     def synth(
         out: Annotated[Path, typer.Option("--out", help="Dataset folder to create.")],
-        preset: Annotated[
-            str | None,
-            typer.Option(
-                help="'paper': 30 videos from 10 sites like Yu et al. 2018 (26 with an interval);"
-                " 'paper-leave': the same with one target per video walking out of view and back"
-                " (videos of at least 450 frames)."
-            ),
-        ] = None,
-        seed: Annotated[
-            int, typer.Option(help="Random seed; the same seed gives the same data.")
-        ] = 0,
-        videos: Annotated[
-            int | None, typer.Option(help="Number of videos (paper: 30, else 1).")
-        ] = None,
-        frames: Annotated[
-            int | None, typer.Option(help="Frames per video (paper: 90-351 each, else 300).")
-        ] = None,
-        intervals: Annotated[
-            int | None,
-            typer.Option(help="Info-less intervals per video (paper: 1 for 26 videos, else 1)."),
-        ] = None,
+        preset: Annotated[str | None, typer.Option(
+            help="'paper': 30 videos from 10 sites like Yu et al. 2018 (26 with an interval);"
+            " 'paper-leave': the same with one target per video walking out of view and back"
+            " (videos of at least 450 frames).")] = None,
+        seed: Annotated[int, typer.Option(help="Random seed; the same seed gives the same data.")] = 0,
+        videos: Annotated[int | None, typer.Option(help="Number of videos (paper: 30, else 1).")] = None,
+        frames: Annotated[int | None, typer.Option(
+            help="Frames per video (paper: 90-351 each, else 300).")] = None,
+        intervals: Annotated[int | None, typer.Option(
+            help="Info-less intervals per video (paper: 1 for 26 videos, else 1).")] = None,
         size: Annotated[str, typer.Option(help="Frame size WIDTHxHEIGHT.")] = "1280x720",
         fps: Annotated[float, typer.Option(help="Frame rate.")] = 30.0,
-        trajectories: Annotated[
-            Path | None,
-            typer.Option(help="ETH/UCY 'frame id x y' file or folder for real walking motion."),
-        ] = None,
-        background: Annotated[
-            Path | None,
-            typer.Option(
-                help="Ground image (a top view, or an OpenTraj reference.png with H.txt beside it)."
-            ),
-        ] = None,
-        output_format: Annotated[
-            str, typer.Option("--format", help="mp4 (video.mp4) or jpg (img1/).")
-        ] = "mp4",
+        trajectories: Annotated[Path | None, typer.Option(
+            help="ETH/UCY 'frame id x y' file or folder for real walking motion.")] = None,
+        background: Annotated[Path | None, typer.Option(
+            help="Ground image (a top view, or an OpenTraj reference.png with H.txt beside it).")] = None,
+        output_format: Annotated[str, typer.Option("--format", help="mp4 (video.mp4) or jpg (img1/).")] = "mp4",
         jobs: Annotated[int, typer.Option(help="Parallel processes, one video each.")] = 2,
-        preview: Annotated[
-            bool | None,
-            typer.Option(
-                "--preview/--no-preview",
-                help="Save preview PNGs in OUT/preview (default: on for a preset).",
-                show_default=False,
-            ),
-        ] = None,
-        force: Annotated[
-            bool, typer.Option(help="Write into a non-empty folder, replacing videos.")
-        ] = False,
-        max_pan: Annotated[
-            float, typer.Option(help="Largest pan change across an interval (degrees).")
-        ] = 30.0,
-        max_roll: Annotated[
-            float, typer.Option(help="Largest roll change across an interval (degrees).")
-        ] = 10.0,
-        scale_range: Annotated[
-            str, typer.Option(help="Scale factor range across an interval, LOW,HIGH.")
-        ] = "0.7,1.4",
-        leave: Annotated[
-            int | None,
-            typer.Option(
-                help="Targets per video that walk out of view and come back (0-5; paper-leave: 1,"
-                " else 0)."
-            ),
-        ] = None,
-        targets: Annotated[
-            int | None,
-            typer.Option(
-                "--targets",
-                help="People of interest per video (1-12; default: 5 to 10); the other"
-                " pedestrians are bystanders, in heads.csv and not in gt.csv.",
-            ),
-        ] = None,
+        preview: Annotated[bool | None, typer.Option(
+            "--preview/--no-preview", help="Save preview PNGs in OUT/preview (default: on for a preset).",
+            show_default=False)] = None,
+        force: Annotated[bool, typer.Option(help="Write into a non-empty folder, replacing videos.")] = False,
+        max_pan: Annotated[float, typer.Option(
+            help="Largest pan change across an interval (degrees).")] = 30.0,
+        max_roll: Annotated[float, typer.Option(
+            help="Largest roll change across an interval (degrees).")] = 10.0,
+        scale_range: Annotated[str, typer.Option(
+            help="Scale factor range across an interval, LOW,HIGH.")] = "0.7,1.4",
+        leave: Annotated[int | None, typer.Option(
+            help="Targets per video that walk out of view and come back (0-5; paper-leave: 1,"
+            " else 0).")] = None,
+        targets: Annotated[int | None, typer.Option(
+            "--targets", help="People of interest per video (1-12; default: 5 to 10); the other"
+            " pedestrians are bystanders, in heads.csv and not in gt.csv.")] = None,
     ) -> None:
         """Render a synthetic wearable-camera dataset with ground truth."""
-        run_synth(
-            out,
-            preset=preset,
-            seed=seed,
-            videos=videos,
-            frames=frames,
-            intervals=intervals,
-            size=size,
-            fps=fps,
-            trajectories=trajectories,
-            background=background,
-            output_format=output_format,
-            jobs=jobs,
-            preview=preview,
-            force=force,
-            max_pan=max_pan,
-            max_roll=max_roll,
-            scale_range=scale_range,
-            leave=leave,
-            targets=targets,
-        )
+        run_synth(out, preset=preset, seed=seed, videos=videos, frames=frames, intervals=intervals,
+                  size=size, fps=fps, trajectories=trajectories, background=background,
+                  output_format=output_format, jobs=jobs, preview=preview, force=force,
+                  max_pan=max_pan, max_roll=max_roll, scale_range=scale_range, leave=leave,
+                  targets=targets)

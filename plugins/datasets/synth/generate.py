@@ -90,9 +90,7 @@ class FrameRenderer:
         if plan.background:
             ground = load_background(Path(plan.background), ground_size, ground_ppm)
         else:
-            ground = ground_texture(
-                rng, site.ground_style, site.ground_colour, ground_size, ground_ppm
-            )
+            ground = ground_texture(rng, site.ground_style, site.ground_colour, ground_size, ground_ppm)
         # A slight blur of the texture is a cheap mip-map: far, minified ground does not shimmer.
         ground = cv2.GaussianBlur(ground, (0, 0), 0.8)
         floor = site.walkway_height
@@ -101,75 +99,36 @@ class FrameRenderer:
         self.far_planes = [
             # The square's texture covers x in [-60, 60] m; mirrored copies extend it to
             # +-180 m so no view sideways runs off its edge.
-            TexturedPlane(
-                "ground",
-                np.array([-60.0, -3.0, 0.0]),
-                x_axis,
-                y_axis,
-                ground,
-                ground_ppm,
-                extent=(-ground_size[0], 0.0, 2.0 * ground_size[0], ground_size[1]),
-            ),
-            TexturedPlane(
-                "facade",
-                np.array([-70.0, far, facade_height]),
-                x_axis,
-                down,
-                facade_texture(rng, site.facade_colour, (1400, int(facade_height * 10)), 10.0),
-                10.0,
-            ),
+            TexturedPlane("ground", np.array([-60.0, -3.0, 0.0]), x_axis, y_axis, ground, ground_ppm,
+                          extent=(-ground_size[0], 0.0, 2.0 * ground_size[0], ground_size[1])),
+            TexturedPlane("facade", np.array([-70.0, far, facade_height]), x_axis, down,
+                          facade_texture(rng, site.facade_colour, (1400, int(facade_height * 10)), 10.0),
+                          10.0),
         ]
         near_ppm = 40.0 * detail
-        walkway = plain_texture(
-            rng,
-            site.walkway_colour,
-            (int(120 * near_ppm), int(2.5 * near_ppm)),
-            near_ppm,
-            stripe_metres=0.5,
-        )
+        walkway = plain_texture(rng, site.walkway_colour, (int(120 * near_ppm), int(2.5 * near_ppm)),
+                                near_ppm, stripe_metres=0.5)
         red, green, blue = site.walkway_colour
-        parapet = plain_texture(
-            rng,
-            (int(red * 0.85), int(green * 0.85), int(blue * 0.85)),
-            (int(120 * near_ppm), int(PARAPET_HEIGHT * near_ppm)),
-            near_ppm,
-        )
+        parapet = plain_texture(rng, (int(red * 0.85), int(green * 0.85), int(blue * 0.85)),
+                                (int(120 * near_ppm), int(PARAPET_HEIGHT * near_ppm)), near_ppm)
         red, green, blue = site.facade_colour
         wall_colour = (int(red * 0.8), int(green * 0.8), int(blue * 0.8))
         wall_ppm = 24.0 * detail
-        wall = facade_texture(
-            rng,
-            wall_colour,
-            (int(120 * wall_ppm), int(3.4 * wall_ppm)),
-            wall_ppm,
-            storey_metres=3.4,
-        )
+        wall = facade_texture(rng, wall_colour, (int(120 * wall_ppm), int(3.4 * wall_ppm)), wall_ppm,
+                              storey_metres=3.4)
         self.near_planes = [
-            TexturedPlane(
-                "walkway", np.array([-60.0, -2.5, floor]), x_axis, y_axis, walkway, near_ppm
-            ),
-            TexturedPlane(
-                "parapet",
-                np.array([-60.0, 0.0, floor + PARAPET_HEIGHT]),
-                x_axis,
-                down,
-                parapet,
-                near_ppm,
-            ),
-            TexturedPlane(
-                "wall", np.array([-60.0, -2.5, floor + 3.4]), x_axis, down, wall, wall_ppm
-            ),
+            TexturedPlane("walkway", np.array([-60.0, -2.5, floor]), x_axis, y_axis, walkway, near_ppm),
+            TexturedPlane("parapet", np.array([-60.0, 0.0, floor + PARAPET_HEIGHT]), x_axis, down,
+                          parapet, near_ppm),
+            TexturedPlane("wall", np.array([-60.0, -2.5, floor + 3.4]), x_axis, down, wall, wall_ppm),
         ]
         crowd = simulation.crowd
         self.sprites = [PersonSprites.build(random_look(rng), rng) for _ in range(crowd.count)]
         self.shadow = [shadow_sprite()]
         self.walked = crowd.walked()
         self.noise = SensorNoise(rng, (plan.height, plan.width), sigma=rng.uniform(2.5, 5.0))
-        self.sky = (
-            ((235, 200, 150), (245, 235, 225))
-            if rng.random() < 0.7
-            else ((190, 185, 180), (225, 225, 225))
-        )
+        self.sky = ((235, 200, 150), (245, 235, 225)) if rng.random() < 0.7 else ((190, 185, 180),
+                                                                                 (225, 225, 225))
         self.defocus = rng.uniform(0.5, 0.9)
 
     def render(self, frame: int) -> ImageArray:
@@ -209,37 +168,28 @@ class FrameRenderer:
         neck_height = heights - HEAD_DIAMETER_M - 0.03
         # All the points of every person in one projection: feet, neck, neck side, head centre,
         # and three shadow points on the ground.
-        points = np.concatenate(
-            [
-                np.column_stack([ground, np.zeros(count)]),
-                np.column_stack([ground, neck_height]),
-                np.column_stack([ground, neck_height]) - right * BODY_WIDTH_M / 2.0,
-                np.column_stack([ground, heights - 0.11]),
-                np.column_stack([shadow_centre - 0.45 * SUN, np.zeros(count)]),
-                np.column_stack([shadow_centre + 0.45 * SUN, np.zeros(count)]),
-                np.column_stack([shadow_centre - 0.45 * SUN - 0.3 * sun_side, np.zeros(count)]),
-            ]
-        )
+        points = np.concatenate([
+            np.column_stack([ground, np.zeros(count)]),
+            np.column_stack([ground, neck_height]),
+            np.column_stack([ground, neck_height]) - right * BODY_WIDTH_M / 2.0,
+            np.column_stack([ground, heights - 0.11]),
+            np.column_stack([shadow_centre - 0.45 * SUN, np.zeros(count)]),
+            np.column_stack([shadow_centre + 0.45 * SUN, np.zeros(count)]),
+            np.column_stack([shadow_centre - 0.45 * SUN - 0.3 * sun_side, np.zeros(count)]),
+        ])
         pixels_all, depth_all = project(points, pose, camera)
         pixels = pixels_all.reshape(7, count, 2)
         depths = depth_all.reshape(7, count)
         feet, neck, neck_side, heads = pixels[0], pixels[1], pixels[2], pixels[3]
         # A person is drawn when the box around feet and head (grown by the body width and the
         # shadow) meets the image.
-        margin = (
-            2.0 * np.linalg.norm(neck_side - neck, axis=1)
-            + 0.5 * np.linalg.norm(heads - feet, axis=1)
-            + 4.0
-        )
-        onscreen = (
-            (ground[:, 1] > 0.3)
-            & (depths[0] > 0.5)
-            & (depths[3] > 0.5)
-            & (np.minimum(feet[:, 0], heads[:, 0]) < camera.width + margin)
-            & (np.maximum(feet[:, 0], heads[:, 0]) > -margin)
-            & (np.minimum(feet[:, 1], heads[:, 1]) < camera.height + margin)
-            & (np.maximum(feet[:, 1], heads[:, 1]) > -margin)
-        )
+        margin = 2.0 * np.linalg.norm(neck_side - neck, axis=1) + 0.5 * np.linalg.norm(
+            heads - feet, axis=1) + 4.0
+        onscreen = (ground[:, 1] > 0.3) & (depths[0] > 0.5) & (depths[3] > 0.5) & (
+            np.minimum(feet[:, 0], heads[:, 0]) < camera.width + margin) & (
+            np.maximum(feet[:, 0], heads[:, 0]) > -margin) & (
+            np.minimum(feet[:, 1], heads[:, 1]) < camera.height + margin) & (
+            np.maximum(feet[:, 1], heads[:, 1]) > -margin)
         order = [int(p) for p in np.argsort(-depths[0]) if onscreen[p]]
         shadow_ok = np.all(depths[4:] > 0.3, axis=0)
         for person in order:
@@ -249,22 +199,14 @@ class FrameRenderer:
         for person in order:
             sprites = self.sprites[person]
             phase = int(self.walked[person, frame] / 0.35) % len(sprites.bodies)
-            paste(
-                image,
-                sprites.bodies[phase],
-                np.stack([neck[person], feet[person], neck_side[person]]),
-            )
+            paste(image, sprites.bodies[phase], np.stack([neck[person], feet[person], neck_side[person]]))
             upward = heads[person] - feet[person]
             length = float(np.hypot(upward[0], upward[1]))
             unit = upward / length if length > 1e-6 else np.array([0.0, -1.0])
             across = np.array([-unit[1], unit[0]])
             radius = diameters[person] / 2.0
             top = heads[person] + unit * radius
-            paste(
-                image,
-                sprites.head,
-                np.stack([top, heads[person] - unit * radius, top + across * radius]),
-            )
+            paste(image, sprites.head, np.stack([top, heads[person] - unit * radius, top + across * radius]))
 
 
 # ---------------------------------------------------------------------------------------- writing
@@ -307,19 +249,10 @@ def _meta(simulation: Simulation, output_format: str) -> dict[str, Any]:
         "trajectories": plan.trajectories,
         "background": plan.background,
         "intervals": [
-            {
-                "start": interval.start + 1,
-                "end": interval.end + 1,
-                "kind": interval.kind,
-                "shows": variant,
-                "offsets_after": list(np.round(offsets, 3)),
-            }
-            for interval, variant, offsets in zip(
-                plan.intervals,
-                simulation.motion.variants,
-                simulation.motion.segment_offsets[1:],
-                strict=False,
-            )
+            {"start": interval.start + 1, "end": interval.end + 1, "kind": interval.kind,
+             "shows": variant, "offsets_after": list(np.round(offsets, 3))}
+            for interval, variant, offsets in zip(plan.intervals, simulation.motion.variants,
+                                                   simulation.motion.segment_offsets[1:], strict=False)
         ],
         "head_size": "head diameter in pixels",
     }
@@ -344,16 +277,8 @@ def _annotate(image: ImageArray, simulation: Simulation, frame: int, label: str)
     canvas = image.copy()
     for target_id, (x, y) in simulation.targets.get(frame, {}).items():
         cv2.circle(canvas, (round(x), round(y)), 14, (0, 255, 255), 2, cv2.LINE_AA)
-        cv2.putText(
-            canvas,
-            str(target_id),
-            (int(x) + 12, int(y) - 12),
-            cv2.FONT_HERSHEY_SIMPLEX,
-            0.8,
-            (0, 255, 255),
-            2,
-            cv2.LINE_AA,
-        )
+        cv2.putText(canvas, str(target_id), (int(x) + 12, int(y) - 12), cv2.FONT_HERSHEY_SIMPLEX,
+                    0.8, (0, 255, 255), 2, cv2.LINE_AA)
     cv2.putText(canvas, label, (12, 36), cv2.FONT_HERSHEY_SIMPLEX, 1.0, (0, 0, 255), 2, cv2.LINE_AA)
     return canvas
 
@@ -367,11 +292,8 @@ def _preview_frames(simulation: Simulation) -> dict[int, str]:
     variant = simulation.motion.variants[0]
     a, b = interval.start - 1, interval.start + interval.length
     middle = interval.start + interval.length // 2
-    return {
-        a: f"a = {a + 1}",
-        middle: f"{interval.kind} ({variant}) {middle + 1}",
-        b: f"b = {b + 1}",
-    }
+    return {a: f"a = {a + 1}", middle: f"{interval.kind} ({variant}) {middle + 1}",
+            b: f"b = {b + 1}"}
 
 
 def _iterate_frames(simulation: Simulation) -> Iterator[tuple[int, ImageArray]]:
@@ -380,13 +302,8 @@ def _iterate_frames(simulation: Simulation) -> Iterator[tuple[int, ImageArray]]:
         yield frame, renderer.render(frame)
 
 
-def generate_video(
-    plan: VideoPlan,
-    out_dir: Path,
-    output_format: str = "mp4",
-    preview_dir: Path | None = None,
-    force: bool = False,
-) -> VideoResult:
+def generate_video(plan: VideoPlan, out_dir: Path, output_format: str = "mp4",
+                   preview_dir: Path | None = None, force: bool = False) -> VideoResult:
     """Simulate, render and write one video to ``out_dir / plan.name``.
 
     Args:
@@ -414,17 +331,11 @@ def generate_video(
         kept: dict[int, ImageArray] = {}
         writer = None
         if output_format == "mp4":
-            writer = cv2.VideoWriter(
-                str(temporary / VIDEO_FILE),
-                cv2.VideoWriter.fourcc(*"mp4v"),
-                plan.fps,
-                (plan.width, plan.height),
-            )
+            writer = cv2.VideoWriter(str(temporary / VIDEO_FILE), cv2.VideoWriter.fourcc(*"mp4v"),
+                                     plan.fps, (plan.width, plan.height))
             if not writer.isOpened():
-                raise UserError(
-                    f"{temporary / VIDEO_FILE}: OpenCV cannot write mp4v video here;"
-                    " expected a writable folder (or use --format jpg)."
-                )
+                raise UserError(f"{temporary / VIDEO_FILE}: OpenCV cannot write mp4v video here;"
+                                " expected a writable folder (or use --format jpg).")
         else:
             (temporary / IMAGE_FOLDER).mkdir()
         try:
@@ -446,20 +357,14 @@ def generate_video(
         write_text(temporary / POSES_FILE, _poses_text(simulation))
         write_meta(temporary / META_FILE, _meta(simulation, output_format))
         if preview_dir is not None and kept:
-            panels = [
-                cv2.resize(
-                    _annotate(kept[frame], simulation, frame, label),
-                    (640, int(640 * plan.height / plan.width)),
-                    interpolation=cv2.INTER_AREA,
-                )
-                for frame, label in sorted(wanted.items())
-            ]
+            panels = [cv2.resize(_annotate(kept[frame], simulation, frame, label), (640, int(
+                640 * plan.height / plan.width)), interpolation=cv2.INTER_AREA)
+                for frame, label in sorted(wanted.items())]
             kind = plan.intervals[0].kind if plan.intervals else "none"
             _write_png(preview_dir / f"{plan.name}_{kind}.png", np.concatenate(panels, axis=1))
         temporary.chmod(0o755)  # mkdtemp makes it private; a dataset folder is not
-    return VideoResult(
-        plan.name, final, plan.n_frames, len(plan.intervals), time.perf_counter() - started
-    )
+    return VideoResult(plan.name, final, plan.n_frames, len(plan.intervals),
+                       time.perf_counter() - started)
 
 
 def staging_folders(out_dir: Path) -> list[Path]:
@@ -528,9 +433,8 @@ def generate_dataset(
         import multiprocessing
 
         context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(
-            max_workers=min(jobs, len(tasks)), mp_context=context, initializer=_worker_init
-        ) as pool:
+        with ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=context,
+                                 initializer=_worker_init) as pool:
             futures = [pool.submit(_run_one, task) for task in tasks]
             try:
                 for future in as_completed(futures):
@@ -551,11 +455,5 @@ def generate_demo(out_dir: Path) -> Path:
     return generate_video(demo_plan(), Path(out_dir), "mp4", preview_dir=None, force=True).path
 
 
-__all__ = [
-    "FORMATS",
-    "FrameRenderer",
-    "VideoResult",
-    "generate_dataset",
-    "generate_demo",
-    "generate_video",
-]
+__all__ = ["FORMATS", "FrameRenderer", "VideoResult", "generate_dataset", "generate_demo",
+           "generate_video"]

@@ -137,11 +137,8 @@ def walk_group(
     sway = np.clip(sway, -0.25, 0.25)
     # Low-pass the heading so the formation turns with the group, but smoothly.
     kernel = np.ones(int(fps)) / int(fps)
-    smooth_heading = np.convolve(
-        np.pad(headings, (len(kernel) // 2, len(kernel) - 1 - len(kernel) // 2), mode="edge"),
-        kernel,
-        mode="valid",
-    )
+    smooth_heading = np.convolve(np.pad(headings, (len(kernel) // 2, len(kernel) - 1 - len(kernel) // 2),
+                                        mode="edge"), kernel, mode="valid")
     cos_h, sin_h = np.cos(smooth_heading), np.sin(smooth_heading)
     # Offset x is across (to the right of the heading), y along it.
     world_x = offsets[:, 0:1] * cos_h[None] + offsets[:, 1:2] * sin_h[None]
@@ -178,9 +175,8 @@ def builtin_crowd(
             start[1] = max(start[1], SQUARE_BOUNDS[2] + 1.0)
             if np.min(np.linalg.norm(targets[:, 0] - start, axis=1)) > 3.0:
                 break
-        members = walk_group(
-            rng, size, start, rng.uniform(0, 360), n_frames, fps, standing=bool(rng.random() < 0.12)
-        )
+        members = walk_group(rng, size, start, rng.uniform(0, 360), n_frames, fps,
+                             standing=bool(rng.random() < 0.12))
         parts.append(members)
         groups.append(np.full(size, group_number, dtype=np.int64))
         group_number += 1
@@ -188,36 +184,17 @@ def builtin_crowd(
     positions = np.concatenate(parts)
     is_target = np.zeros(len(positions), dtype=bool)
     is_target[:n_targets] = True
-    return Crowd(
-        positions,
-        _heights(rng, len(positions)),
-        is_target,
-        np.concatenate(groups),
-        notes={"motion": "builtin"},
-    )
+    return Crowd(positions, _heights(rng, len(positions)), is_target, np.concatenate(groups),
+                 notes={"motion": "builtin"})
 
 
-def standing_group(
-    rng: np.random.Generator, count: int, centre: FloatArray, n_frames: int, fps: float
-) -> Crowd:
+def standing_group(rng: np.random.Generator, count: int, centre: FloatArray, n_frames: int,
+                   fps: float) -> Crowd:
     """A group chatting in place (the 'another group' an interval looks at)."""
-    positions = walk_group(
-        rng,
-        count,
-        centre,
-        rng.uniform(0, 360),
-        n_frames,
-        fps,
-        speed_range=(0.2, 0.4),
-        stops=True,
-        standing=bool(rng.random() < 0.6),
-    )
-    return Crowd(
-        positions,
-        _heights(rng, count),
-        np.zeros(count, dtype=bool),
-        np.zeros(count, dtype=np.int64),
-    )
+    positions = walk_group(rng, count, centre, rng.uniform(0, 360), n_frames, fps,
+                           speed_range=(0.2, 0.4), stops=True, standing=bool(rng.random() < 0.6))
+    return Crowd(positions, _heights(rng, count), np.zeros(count, dtype=bool),
+                 np.zeros(count, dtype=np.int64))
 
 
 # ------------------------------------------------------------------------------------- ETH / UCY
@@ -238,9 +215,7 @@ def read_trajectory_file(path: Path) -> dict[int, tuple[FloatArray, FloatArray]]
         try:
             frame, person, x, y = (float(value) for value in fields)
         except ValueError:
-            raise UserError(
-                f"{path}: line {line_number}: expected four numbers (frame id x y)."
-            ) from None
+            raise UserError(f"{path}: line {line_number}: expected four numbers (frame id x y).") from None
         tracks.setdefault(int(person), []).append((frame, x, y))
     result = {}
     for person, rows in tracks.items():
@@ -259,9 +234,7 @@ def trajectory_files(path: Path) -> list[Path]:
         files = sorted(p for p in path.glob("*.txt") if not p.name.upper().startswith("LICENSE"))
         if files:
             return files
-    raise UserError(
-        f"{path}: no trajectory file; expected a 'frame id x y' .txt file or a folder of them."
-    )
+    raise UserError(f"{path}: no trajectory file; expected a 'frame id x y' .txt file or a folder of them.")
 
 
 def _resample(times: FloatArray, xy: FloatArray, query: FloatArray) -> FloatArray:
@@ -273,14 +246,10 @@ def _resample(times: FloatArray, xy: FloatArray, query: FloatArray) -> FloatArra
         # Imported here: scipy.interpolate would otherwise load with every CLI command (~1 s).
         from scipy.interpolate import CubicSpline
 
-        inside = CubicSpline(times, xy, axis=0, bc_type="natural")(
-            np.clip(query, times[0], times[-1])
-        )
+        inside = CubicSpline(times, xy, axis=0, bc_type="natural")(np.clip(query, times[0], times[-1]))
     else:
-        inside = np.stack(
-            [np.interp(np.clip(query, times[0], times[-1]), times, xy[:, k]) for k in range(2)],
-            axis=1,
-        )
+        inside = np.stack([np.interp(np.clip(query, times[0], times[-1]), times, xy[:, k])
+                           for k in range(2)], axis=1)
     first_velocity = (xy[1] - xy[0]) / (times[1] - times[0])
     last_velocity = (xy[-1] - xy[-2]) / (times[-1] - times[-2])
     for velocity in (first_velocity, last_velocity):
@@ -313,10 +282,8 @@ def trajectory_crowd(
     tracks = read_trajectory_file(Path(source))
     all_frames = np.unique(np.concatenate([frames for frames, _ in tracks.values()]))
     step = float(np.min(np.diff(all_frames))) if len(all_frames) > 1 else 1.0
-    seconds = {
-        person: (frames - all_frames[0]) / step / source_rate_hz
-        for person, (frames, _) in tracks.items()
-    }
+    seconds = {person: (frames - all_frames[0]) / step / source_rate_hz
+               for person, (frames, _) in tracks.items()}
     duration = (n_frames - 1) / fps
     candidates = []
     for start_time in (all_frames - all_frames[0]) / step / source_rate_hz:
@@ -331,18 +298,13 @@ def trajectory_crowd(
     best: tuple[float, float, list[int]] | None = None
     for _attempt in range(40):
         start_time, present = candidates[int(rng.integers(len(candidates)))]
-        positions_now = {
-            p: _resample(seconds[p], tracks[p][1], np.array([start_time]))[0] for p in present
-        }
+        positions_now = {p: _resample(seconds[p], tracks[p][1], np.array([start_time]))[0]
+                         for p in present}
         seed_person = present[int(rng.integers(len(present)))]
-        distances = sorted(
-            present,
-            key=lambda p: float(np.linalg.norm(positions_now[p] - positions_now[seed_person])),
-        )
+        distances = sorted(present, key=lambda p: float(np.linalg.norm(positions_now[p]
+                                                                        - positions_now[seed_person])))
         chosen = distances[:n_targets]
-        spread = max(
-            float(np.linalg.norm(positions_now[p] - positions_now[seed_person])) for p in chosen
-        )
+        spread = max(float(np.linalg.norm(positions_now[p] - positions_now[seed_person])) for p in chosen)
         if best is None or spread < best[1]:
             best = (start_time, spread, chosen)
         if spread < 5.0:
@@ -350,13 +312,8 @@ def trajectory_crowd(
     assert best is not None
     start_time, _spread, targets = best
     query = start_time + np.arange(n_frames) / fps
-    others = [
-        p
-        for p in tracks
-        if p not in targets
-        and seconds[p][-1] >= start_time
-        and seconds[p][0] <= start_time + duration
-    ]
+    others = [p for p in tracks if p not in targets and seconds[p][-1] >= start_time
+              and seconds[p][0] <= start_time + duration]
     order = list(targets) + others
     positions = np.stack([_resample(seconds[p], tracks[p][1], query) for p in order])
     angle = rng.uniform(0, 2 * math.pi)
@@ -371,15 +328,7 @@ def trajectory_crowd(
     is_target[:n_targets] = True
     group = np.arange(len(order), dtype=np.int64)
     group[:n_targets] = 0
-    return Crowd(
-        positions,
-        _heights(rng, len(order)),
-        is_target,
-        group,
-        notes={
-            "motion": "trajectories",
-            "trajectory_file": Path(source).name,
-            "trajectory_start_s": round(float(start_time), 3),
-            "trajectory_ids": [int(p) for p in targets],
-        },
-    )
+    return Crowd(positions, _heights(rng, len(order)), is_target, group,
+                 notes={"motion": "trajectories", "trajectory_file": Path(source).name,
+                        "trajectory_start_s": round(float(start_time), 3),
+                        "trajectory_ids": [int(p) for p in targets]})

@@ -66,26 +66,17 @@ SITES: tuple[Site, ...] = (
     Site("plaza", "paving", (150, 160, 170), (170, 185, 200), (120, 125, 130), 3, 60, (7, 11), 22),
     Site("campus", "tiles", (170, 170, 165), (140, 150, 165), (140, 140, 140), 2, 55, (6, 10), 18),
     Site("street", "asphalt", (95, 95, 100), (120, 140, 170), (150, 150, 150), 4, 58, (8, 12), 26),
-    Site(
-        "station", "checker", (190, 190, 185), (110, 110, 120), (100, 110, 120), 3, 62, (7, 11), 30
-    ),
+    Site("station", "checker", (190, 190, 185), (110, 110, 120), (100, 110, 120), 3, 62, (7, 11), 30),
     Site("market", "brick", (80, 100, 150), (150, 175, 190), (130, 130, 125), 2, 55, (6, 10), 24),
     Site("park", "gravel", (120, 170, 180), (160, 170, 160), (110, 120, 115), 3, 65, (7, 11), 14),
     Site("mall", "tiles", (200, 195, 190), (175, 170, 160), (160, 160, 160), 4, 56, (8, 12), 28),
-    Site(
-        "harbour", "paving", (140, 140, 125), (120, 160, 190), (115, 115, 110), 2, 64, (6, 10), 16
-    ),
-    Site(
-        "courtyard", "brick", (90, 110, 140), (165, 180, 195), (125, 130, 135), 3, 55, (7, 11), 20
-    ),
-    Site(
-        "terminal", "asphalt", (110, 110, 115), (150, 150, 145), (145, 145, 150), 4, 60, (8, 12), 22
-    ),
+    Site("harbour", "paving", (140, 140, 125), (120, 160, 190), (115, 115, 110), 2, 64, (6, 10), 16),
+    Site("courtyard", "brick", (90, 110, 140), (165, 180, 195), (125, 130, 135), 3, 55, (7, 11), 20),
+    Site("terminal", "asphalt", (110, 110, 115), (150, 150, 145), (145, 145, 150), 4, 60, (8, 12), 22),
 )
 
-DEMO_SITE = Site(
-    "demo", "paving", (150, 160, 170), (170, 185, 200), (120, 125, 130), 2, 50, (5.5, 6.5), 10
-)
+DEMO_SITE = Site("demo", "paving", (150, 160, 170), (170, 185, 200), (120, 125, 130), 2, 50,
+                 (5.5, 6.5), 10)
 
 
 @dataclass(frozen=True)
@@ -177,9 +168,7 @@ def paper_interval_lengths(rng: np.random.Generator, count: int) -> list[int]:
         factor = (low + high) / 2.0
         total = np.clip(middle * factor, MIN_INTERVAL_FRAMES, MAX_INTERVAL_FRAMES).sum()
         low, high = (factor, high) if total < target_total else (low, factor)
-    scaled = np.clip(
-        np.round(middle * (low + high) / 2.0), MIN_INTERVAL_FRAMES, MAX_INTERVAL_FRAMES
-    )
+    scaled = np.clip(np.round(middle * (low + high) / 2.0), MIN_INTERVAL_FRAMES, MAX_INTERVAL_FRAMES)
     lengths = [MIN_INTERVAL_FRAMES, *(int(value) for value in scaled), MAX_INTERVAL_FRAMES]
     order = rng.permutation(count)
     return [lengths[index] for index in order]
@@ -191,9 +180,7 @@ def layout_intervals(
     """Place intervals of the given lengths in a video, keeping segments of normal frames
     between them (at least MIN_LEAD, MIN_GAP and MIN_TAIL frames); spare frames are shared out
     at random."""
-    needed = (
-        sum(lengths) + MIN_LEAD_FRAMES + MIN_TAIL_FRAMES + MIN_GAP_FRAMES * max(len(lengths) - 1, 0)
-    )
+    needed = sum(lengths) + MIN_LEAD_FRAMES + MIN_TAIL_FRAMES + MIN_GAP_FRAMES * max(len(lengths) - 1, 0)
     if needed > n_frames:
         raise UserError(
             f"--frames {n_frames}: too short for {len(lengths)} interval(s) of {sum(lengths)} frames;"
@@ -238,15 +225,8 @@ def paper_plan(
     return plans[:count]
 
 
-def _paper_block(
-    seed: int,
-    block: int,
-    frames: int | None,
-    interval_count: int | None,
-    width: int,
-    height: int,
-    fps: float,
-) -> list[VideoPlan]:
+def _paper_block(seed: int, block: int, frames: int | None, interval_count: int | None,
+                 width: int, height: int, fps: float) -> list[VideoPlan]:
     rng = np.random.default_rng(np.random.SeedSequence([seed, 1_000_003, block]))
     kinds = ["sky"] * 11 + ["group"] * 10 + ["path"] * 5
     kinds = [kinds[index] for index in rng.permutation(len(kinds))]
@@ -255,12 +235,8 @@ def _paper_block(
     with_interval = set(rng.permutation(30)[:26].tolist())
     # Video lengths: interval plus lead and tail; the 4 videos without an interval take the
     # paper's extremes (90 and 351 frames) so the range is exactly the paper's.
-    plain_lengths = [
-        PAPER_LENGTH_RANGE[0],
-        PAPER_LENGTH_RANGE[1],
-        int(rng.integers(120, 300)),
-        int(rng.integers(120, 300)),
-    ]
+    plain_lengths = [PAPER_LENGTH_RANGE[0], PAPER_LENGTH_RANGE[1],
+                     int(rng.integers(120, 300)), int(rng.integers(120, 300))]
     plans = []
     interval_index = 0
     plain_index = 0
@@ -271,13 +247,10 @@ def _paper_block(
         if index in with_interval:
             count = 1 if interval_count is None else interval_count
             first_kind = kinds[interval_index]
-            own_kinds = [first_kind] + [
-                str(video_rng.choice(INTERVAL_KINDS)) for _ in range(count - 1)
-            ]
+            own_kinds = [first_kind] + [str(video_rng.choice(INTERVAL_KINDS)) for _ in range(count - 1)]
             own_lengths = [lengths[interval_index]] + [
                 int(np.clip(video_rng.lognormal(np.log(70.0), 0.5), MIN_INTERVAL_FRAMES, 200))
-                for _ in range(count - 1)
-            ]
+                for _ in range(count - 1)]
             own_lengths = own_lengths[:count]
             own_kinds = own_kinds[:count]
             interval_index += 1
@@ -291,33 +264,27 @@ def _paper_block(
                     n_frames = max(n_frames, sum(own_lengths) + MIN_LEAD_FRAMES + MIN_TAIL_FRAMES)
             else:
                 n_frames = frames
-                budget = (
-                    frames - MIN_LEAD_FRAMES - MIN_TAIL_FRAMES - MIN_GAP_FRAMES * max(count - 1, 0)
-                )
+                budget = frames - MIN_LEAD_FRAMES - MIN_TAIL_FRAMES - MIN_GAP_FRAMES * max(count - 1, 0)
                 if sum(own_lengths) > budget and count:
                     shrink = budget / sum(own_lengths)
-                    own_lengths = [
-                        max(MIN_INTERVAL_FRAMES, int(length * shrink)) for length in own_lengths
-                    ]
+                    own_lengths = [max(MIN_INTERVAL_FRAMES, int(length * shrink)) for length in own_lengths]
             planned = layout_intervals(video_rng, n_frames, own_lengths, own_kinds)
         else:
             n_frames = plain_lengths[plain_index] if frames is None else frames
             plain_index += 1
             planned = ()
-        plans.append(
-            VideoPlan(
-                name=f"synth{number:03d}-{site.name}",
-                seed=_video_seed(seed, number),
-                site=site,
-                n_frames=n_frames,
-                intervals=planned,
-                n_targets=int(video_rng.integers(5, 11)),
-                fps=fps,
-                width=width,
-                height=height,
-                preset="paper",
-            )
-        )
+        plans.append(VideoPlan(
+            name=f"synth{number:03d}-{site.name}",
+            seed=_video_seed(seed, number),
+            site=site,
+            n_frames=n_frames,
+            intervals=planned,
+            n_targets=int(video_rng.integers(5, 11)),
+            fps=fps,
+            width=width,
+            height=height,
+            preset="paper",
+        ))
     return plans
 
 
@@ -325,9 +292,8 @@ def _paper_block(
 LEAVE_MIN_FRAMES = 450
 
 
-def with_leavers(
-    plans: list[VideoPlan], leave: int, preset: str | None = None, min_frames: int | None = None
-) -> list[VideoPlan]:
+def with_leavers(plans: list[VideoPlan], leave: int, preset: str | None = None,
+                 min_frames: int | None = None) -> list[VideoPlan]:
     """The same plans with ``leave`` targets per video walking out of view and back.
 
     Args:
@@ -337,15 +303,9 @@ def with_leavers(
         min_frames: lengthen shorter videos to this many frames (only their tail grows: the
             intervals stay where they were).
     """
-    return [
-        replace(
-            plan,
-            leave=leave,
-            preset=plan.preset if preset is None else preset,
-            n_frames=plan.n_frames if min_frames is None else max(plan.n_frames, min_frames),
-        )
-        for plan in plans
-    ]
+    return [replace(plan, leave=leave, preset=plan.preset if preset is None else preset,
+                    n_frames=plan.n_frames if min_frames is None else max(plan.n_frames, min_frames))
+            for plan in plans]
 
 
 def custom_plan(
@@ -365,30 +325,20 @@ def custom_plan(
         kinds = [INTERVAL_KINDS[(index + k) % 3] for k in range(intervals)]
         budget = frames - MIN_LEAD_FRAMES - MIN_TAIL_FRAMES - MIN_GAP_FRAMES * max(intervals - 1, 0)
         cap = max(MIN_INTERVAL_FRAMES, budget // max(intervals, 1)) if intervals else 0
-        lengths = [
-            int(
-                np.clip(
-                    rng.lognormal(np.log(70.0), 0.5),
-                    MIN_INTERVAL_FRAMES,
-                    min(MAX_INTERVAL_FRAMES, cap),
-                )
-            )
-            for _ in range(intervals)
-        ]
+        lengths = [int(np.clip(rng.lognormal(np.log(70.0), 0.5), MIN_INTERVAL_FRAMES,
+                               min(MAX_INTERVAL_FRAMES, cap))) for _ in range(intervals)]
         site = SITES[index % len(SITES)]
-        plans.append(
-            VideoPlan(
-                name=f"synth{index + 1:03d}-{site.name}",
-                seed=_video_seed(seed, index + 1),
-                site=site,
-                n_frames=frames,
-                intervals=layout_intervals(rng, frames, lengths, kinds),
-                n_targets=int(rng.integers(5, 11)),
-                fps=fps,
-                width=width,
-                height=height,
-            )
-        )
+        plans.append(VideoPlan(
+            name=f"synth{index + 1:03d}-{site.name}",
+            seed=_video_seed(seed, index + 1),
+            site=site,
+            n_frames=frames,
+            intervals=layout_intervals(rng, frames, lengths, kinds),
+            n_targets=int(rng.integers(5, 11)),
+            fps=fps,
+            width=width,
+            height=height,
+        ))
     return plans
 
 
@@ -408,22 +358,11 @@ def demo_plan() -> VideoPlan:
     )
 
 
-def with_options(
-    plans: list[VideoPlan],
-    trajectories: str | None,
-    background: str | None,
-    hfov_deg: float | None = None,
-    wearer: WearerConfig | None = None,
-) -> list[VideoPlan]:
+def with_options(plans: list[VideoPlan], trajectories: str | None, background: str | None,
+                 hfov_deg: float | None = None, wearer: WearerConfig | None = None
+                 ) -> list[VideoPlan]:
     """The same plans with a trajectory source, a background image, a field of view or head
     motion limits set."""
-    return [
-        replace(
-            plan,
-            trajectories=trajectories,
-            background=background,
-            hfov_deg=plan.hfov_deg if hfov_deg is None else hfov_deg,
-            wearer=plan.wearer if wearer is None else wearer,
-        )
-        for plan in plans
-    ]
+    return [replace(plan, trajectories=trajectories, background=background,
+                    hfov_deg=plan.hfov_deg if hfov_deg is None else hfov_deg,
+                    wearer=plan.wearer if wearer is None else wearer) for plan in plans]

@@ -25,14 +25,8 @@ BODY_WIDTH_M = 0.50
 HEAD_DIAMETER_M = 0.22
 
 SKIN_TONES = ((170, 195, 235), (140, 170, 215), (105, 140, 190), (75, 105, 150), (50, 70, 105))
-HAIR_COLOURS = (
-    (20, 20, 25),
-    (30, 40, 60),
-    (45, 70, 110),
-    (110, 150, 190),
-    (150, 150, 150),
-    (20, 25, 35),
-)
+HAIR_COLOURS = ((20, 20, 25), (30, 40, 60), (45, 70, 110), (110, 150, 190), (150, 150, 150),
+                (20, 25, 35))
 
 
 @dataclass(frozen=True)
@@ -89,11 +83,8 @@ def _pyramid(premultiplied: ImageArray, levels: int = 4) -> list[ImageArray]:
         height, width = previous.shape[:2]
         if min(height, width) < 8:
             break
-        result.append(
-            cv2.resize(
-                previous, (max(width // 2, 1), max(height // 2, 1)), interpolation=cv2.INTER_AREA
-            )
-        )
+        result.append(cv2.resize(previous, (max(width // 2, 1), max(height // 2, 1)),
+                                 interpolation=cv2.INTER_AREA))
     return result
 
 
@@ -108,34 +99,16 @@ def body_sprite(look: PersonLook, phase: int, rng: np.random.Generator) -> Image
     # Legs: two slightly tapering quads; the stride opens and closes with the gait phase.
     for side in (-1, 1):
         foot_x = centre + side * 7 + round(side * swing * 6)
-        leg = np.array(
-            [
-                [centre + side * 2, hip],
-                [centre + side * 14, hip],
-                [foot_x + side * 5, height - 10],
-                [foot_x - side * 4, height - 10],
-            ],
-            np.int32,
-        )
+        leg = np.array([[centre + side * 2, hip], [centre + side * 14, hip],
+                        [foot_x + side * 5, height - 10], [foot_x - side * 4, height - 10]], np.int32)
         cv2.fillConvexPoly(canvas, leg, trousers, lineType=cv2.LINE_AA)
-        cv2.ellipse(
-            canvas,
-            (foot_x, height - 8),
-            (7, 6),
-            0,
-            0,
-            360,
-            (25, 25, 30, 255),
-            -1,
-            lineType=cv2.LINE_AA,
-        )
+        cv2.ellipse(canvas, (foot_x, height - 8), (7, 6), 0, 0, 360, (25, 25, 30, 255), -1,
+                    lineType=cv2.LINE_AA)
     # Torso: shoulders rounded at the top (seen from above), narrowing to the hips.
     torso_mask = np.zeros((height, width), dtype=np.uint8)
     torso = np.array([[6, 14], [width - 6, 14], [width - 12, hip + 6], [12, hip + 6]], np.int32)
     cv2.fillConvexPoly(torso_mask, torso, 255, lineType=cv2.LINE_AA)
-    cv2.ellipse(
-        torso_mask, (centre, 16), (centre - 6, 14), 0, 180, 360, 255, -1, lineType=cv2.LINE_AA
-    )
+    cv2.ellipse(torso_mask, (centre, 16), (centre - 6, 14), 0, 180, 360, 255, -1, lineType=cv2.LINE_AA)
     cloth = np.zeros((height, width, 3), dtype=np.uint8)
     cloth[:] = look.shirt
     if look.pattern == "stripes":
@@ -145,9 +118,7 @@ def body_sprite(look: PersonLook, phase: int, rng: np.random.Generator) -> Image
         for row in range(0, hip + 8, 10):
             for column in range(0, width, 10):
                 if (row // 10 + column // 10) % 2:
-                    cv2.rectangle(
-                        cloth, (column, row), (column + 9, row + 9), look.shirt_second, -1
-                    )
+                    cv2.rectangle(cloth, (column, row), (column + 9, row + 9), look.shirt_second, -1)
     elif look.pattern == "two_tone":
         cloth[: hip // 2] = look.shirt_second
     # Fabric shading: lighter on one side, darker on the other (light from the upper left).
@@ -164,14 +135,8 @@ def body_sprite(look: PersonLook, phase: int, rng: np.random.Generator) -> Image
         cv2.line(canvas, shoulder, hand, (*look.shirt, 255), 9, lineType=cv2.LINE_AA)
         cv2.circle(canvas, hand, 4, (*look.skin, 255), -1, lineType=cv2.LINE_AA)
     if look.bag is not None:
-        cv2.rectangle(
-            canvas,
-            (centre - 14, 18),
-            (centre + 14, hip - 10),
-            (*look.bag, 255),
-            -1,
-            lineType=cv2.LINE_AA,
-        )
+        cv2.rectangle(canvas, (centre - 14, 18), (centre + 14, hip - 10), (*look.bag, 255), -1,
+                      lineType=cv2.LINE_AA)
     return canvas
 
 
@@ -186,15 +151,11 @@ def head_sprite(look: PersonLook) -> ImageArray:
     cap = np.zeros((size, size), dtype=np.uint8)
     cap_colour = look.hat if look.hat is not None else look.hair
     cap_axes = (int(size * 0.44), int(size * 0.40))
-    cv2.ellipse(
-        cap, (size // 2, int(size * 0.36)), cap_axes, 0, 0, 360, 255, -1, lineType=cv2.LINE_AA
-    )
+    cv2.ellipse(cap, (size // 2, int(size * 0.36)), cap_axes, 0, 0, 360, 255, -1, lineType=cv2.LINE_AA)
     if look.hat is None:
         cap = np.minimum(cap, head_mask)
     weight = cap.astype(np.float32)[..., None] / 255.0
-    canvas[..., :3] = (canvas[..., :3] * (1 - weight) + np.array(cap_colour) * weight).astype(
-        np.uint8
-    )
+    canvas[..., :3] = (canvas[..., :3] * (1 - weight) + np.array(cap_colour) * weight).astype(np.uint8)
     canvas[..., 3] = np.maximum(head_mask, cap)
     # Round shading, so the head reads as a ball rather than a disc.
     grid_y, grid_x = np.mgrid[0:size, 0:size].astype(np.float32)
@@ -203,14 +164,8 @@ def head_sprite(look: PersonLook) -> ImageArray:
     canvas[..., :3] = np.clip(canvas[..., :3] * shade, 0, 255).astype(np.uint8)
     if look.hat is None:  # eyes and a darker mouth line on the face part
         for side in (-1, 1):
-            cv2.circle(
-                canvas,
-                (size // 2 + side * 7, int(size * 0.70)),
-                2,
-                (30, 30, 40, 255),
-                -1,
-                lineType=cv2.LINE_AA,
-            )
+            cv2.circle(canvas, (size // 2 + side * 7, int(size * 0.70)), 2, (30, 30, 40, 255), -1,
+                       lineType=cv2.LINE_AA)
     return canvas
 
 
@@ -234,9 +189,7 @@ class PersonSprites:
 
     @classmethod
     def build(cls, look: PersonLook, rng: np.random.Generator) -> PersonSprites:
-        bodies = [
-            _pyramid(_premultiply(body_sprite(look, phase, rng))) for phase in range(GAIT_PHASES)
-        ]
+        bodies = [_pyramid(_premultiply(body_sprite(look, phase, rng))) for phase in range(GAIT_PHASES)]
         return cls(bodies=bodies, head=_pyramid(_premultiply(head_sprite(look))))
 
 
@@ -254,10 +207,8 @@ def paste(frame: ImageArray, pyramid: list[ImageArray], destination: FloatArray)
     side_x, side_y = top_x - corner_x, top_y - corner_y
     full_height, full_width = pyramid[0].shape[:2]
     # Choose the level that is at most 2x larger than needed: sharper than a big downsample.
-    wanted = max(
-        2.0 * math.hypot(side_x, side_y) / full_width,
-        math.hypot(bottom_x - top_x, bottom_y - top_y) / full_height,
-    )
+    wanted = max(2.0 * math.hypot(side_x, side_y) / full_width,
+                 math.hypot(bottom_x - top_x, bottom_y - top_y) / full_height)
     level = 0
     while level + 1 < len(pyramid) and wanted < 0.5 ** (level + 1):
         level += 1
@@ -271,26 +222,12 @@ def paste(frame: ImageArray, pyramid: list[ImageArray], destination: FloatArray)
     lower = min(math.ceil(max(ys)) + 2, frame.shape[0])
     if right <= left or lower <= upper:
         return
-    source = np.array(
-        [[width / 2.0, 0.0], [width / 2.0, float(height)], [0.0, 0.0]], dtype=np.float32
-    )
-    target = np.array(
-        [
-            [top_x - left, top_y - upper],
-            [bottom_x - left, bottom_y - upper],
-            [corner_x - left, corner_y - upper],
-        ],
-        dtype=np.float32,
-    )
+    source = np.array([[width / 2.0, 0.0], [width / 2.0, float(height)], [0.0, 0.0]], dtype=np.float32)
+    target = np.array([[top_x - left, top_y - upper], [bottom_x - left, bottom_y - upper],
+                       [corner_x - left, corner_y - upper]], dtype=np.float32)
     matrix = cv2.getAffineTransform(source, target)
-    warped = cv2.warpAffine(
-        sprite,
-        matrix,
-        (right - left, lower - upper),
-        flags=cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=(0, 0, 0, 0),
-    )
+    warped = cv2.warpAffine(sprite, matrix, (right - left, lower - upper), flags=cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0))
     region = frame[upper:lower, left:right]
     keep = 1.0 - warped[..., 3:4] * np.float32(1.0 / 255.0)
     # Premultiplied colours never exceed 255, so the unsafe cast cannot wrap around.
@@ -309,14 +246,9 @@ def motion_blur(frame: ImageArray, vector: FloatArray) -> ImageArray:
     kernel = np.zeros((size, size), dtype=np.float32)
     direction = np.asarray(vector, dtype=np.float64) / length * (length_scaled / 2.0)
     middle = size // 2
-    cv2.line(
-        kernel,
-        (round(middle - direction[0]), round(middle - direction[1])),
-        (round(middle + direction[0]), round(middle + direction[1])),
-        1.0,
-        1,
-        lineType=cv2.LINE_AA,
-    )
+    cv2.line(kernel, (round(middle - direction[0]), round(middle - direction[1])),
+             (round(middle + direction[0]), round(middle + direction[1])), 1.0, 1,
+             lineType=cv2.LINE_AA)
     kernel /= max(float(kernel.sum()), 1e-6)
     if factor == 1:
         return cv2.filter2D(frame, -1, kernel, borderType=cv2.BORDER_REFLECT)
@@ -329,9 +261,8 @@ def motion_blur(frame: ImageArray, vector: FloatArray) -> ImageArray:
 class SensorNoise:
     """A bank of pre-drawn Gaussian noise images, so per-frame noise costs two saturating adds."""
 
-    def __init__(
-        self, rng: np.random.Generator, shape: tuple[int, int], sigma: float, bank: int = 3
-    ) -> None:
+    def __init__(self, rng: np.random.Generator, shape: tuple[int, int], sigma: float,
+                 bank: int = 3) -> None:
         noise = rng.standard_normal(size=(bank, shape[0], shape[1], 3), dtype=np.float32)
         # Mostly luminance noise (shared by the channels), a little colour noise.
         noise = (noise.mean(axis=3, keepdims=True) * 1.5 + noise * 0.35) * np.float32(sigma)
