@@ -11,6 +11,7 @@ geometry of a return through an image edge is in :mod:`trackfw_plugins.trackers.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from pydantic import ConfigDict, Field
@@ -83,6 +84,13 @@ class LifecycleSettings(FiniteModel):
         description="a detection whose box is this many times larger or smaller than the"
         " target's last one (on re-acquisition: than the size expected at the detection's"
         " place) is not its head; null = no size check",
+    )
+    size_refused_at_b: Literal["tentative", "lost"] = Field(
+        "tentative",
+        description="a target whose match at b fails the size check: 'tentative' at the gap"
+        " matcher's position (that head's), or 'lost', as a match the look at b refused: it"
+        " takes a free head by look at b when appearance.gap_max_distance is set, else waits"
+        " for re-acquisition",
     )
     reentry_margin_px_at_1080: float | None = Field(
         None,

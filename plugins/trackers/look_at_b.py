@@ -58,6 +58,7 @@ def check_looks_at_b(
     positions: FloatArray,
     detections: Detections | None,
     inactive: IntArray,
+    refused: IntArray | None = None,
 ) -> tuple[IntArray, IntArray]:
     """Refuse the matches at b that look like someone else; re-match those targets by look.
 
@@ -78,6 +79,8 @@ def check_looks_at_b(
         positions: ``(K, 2)`` each target's position at b; updated in place.
         detections: frame b's detections.
         inactive: rows of the lost and out-of-view targets looked for by look.
+        refused: rows of the targets whose match was already refused (their head's size):
+            re-matched by look like the ones the look refuses.
 
     Returns:
         The refused targets left without a match (to be lost), and the inactive targets that
@@ -90,6 +93,8 @@ def check_looks_at_b(
     checked = active[detection_rows[active] >= 0]
     look = memory.looks(image, checked, detections, detection_rows[checked])
     unlike = checked[np.diagonal(look) > limit]  # NaN (nothing known) refuses nothing
+    if refused is not None:
+        unlike = np.concatenate([unlike, refused])
     if len(unlike) + len(inactive) == 0:
         return none, none
     detection_rows[unlike] = NO_MATCH

@@ -416,6 +416,47 @@ def test_a_refused_target_is_not_rematched_between_two_heads_that_look_alike(
         assert tracker.states()[0].matched_detection in (3, 4)
 
 
+@pytest.mark.parametrize("size_refused_at_b", ["tentative", "lost"])
+def test_a_match_at_b_refused_for_size_is_rematched_by_look_or_left_tentative(
+    size_refused_at_b: str,
+) -> None:
+    # The window match put target 1 (red) on a yellow head three times its size, while its
+    # own red head stands free 300 px away. Left tentative, it sits on the yellow head; refused
+    # as by the look check, it takes its own head back by look.
+    appearance = {"descriptor": "patch", "max_distance": 0.3, "gap_max_distance": 0.3}
+    lifecycle = {"size_refused_at_b": size_refused_at_b}
+    tracker = load_registry().build_stage(
+        "tracker", {"type": "kalman", "params": {"appearance": appearance, "lifecycle": lifecycle}}
+    )
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([1, 2, 3]), GROUP)
+    colours = (RED, GREEN, BLUE)
+    tracker.see(_painted([(x, y, c) for (x, y), c in zip(GROUP, colours, strict=True)]))
+    tracker.step(1, _seen(GROUP))
+    at_b = GROUP + np.array([0.0, 200.0])
+    red_head, yellow_head = np.array([800.0, 150.0]), at_b[0]
+    spots = [(*red_head, RED), (*yellow_head, (0, 255, 255)), (*at_b[1], GREEN), (*at_b[2], BLUE)]
+    tracker.see(_painted(spots))
+    heads = _seen(np.vstack([red_head, yellow_head, at_b[1:]]), [30.0, 90.0, 30.0, 30.0])
+    tracker.reinitialise(40, at_b, np.array([1, 2, 3]), heads)
+    states = tracker.states()
+    if size_refused_at_b == "lost":
+        assert [s.status for s in states] == ["tracked"] * 3
+        assert states[0].matched_detection == 0
+        assert np.allclose(tracker.positions()[0], red_head)
+    else:
+        assert [s.status for s in states] == ["tentative", "tracked", "tracked"]
+        assert np.allclose(tracker.positions()[0], yellow_head)
+
+
+def test_a_match_at_b_refused_for_size_with_no_look_check_is_lost() -> None:
+    tracker = _tracker(size_refused_at_b="lost")
+    tracker.step(1, _seen(GROUP, [30.0, 30.0, 30.0]))
+    at_b = GROUP + np.array([0.0, 200.0])
+    tracker.reinitialise(40, at_b, np.array([0, 1, 2]), _seen(at_b, [30.0, 30.0, 100.0]))
+    assert tracker.statuses() == ["tracked", "tracked", "lost"]
+
+
 def _walk_out_right(tracker: Any, group: np.ndarray, sizes: list[float]) -> int:
     """Target 1 (row 0) walks out through the right edge; the others stay. Returns the frame."""
     x, t = float(group[0, 0]), 0
