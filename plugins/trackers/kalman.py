@@ -46,6 +46,7 @@ from trackfw_plugins.trackers.look_at_b import (
     check_looks_at_b,
     detection_rows_of,
     matched_sides,
+    refuse_by_size,
 )
 from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio, stands_out
 
@@ -437,7 +438,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         active = self.life.active()
         detection_rows = detection_rows_of(matched, detections)
         sides = matched_sides(detection_rows, detections)
-        refused = self._refuse_by_size(active, matched, detection_rows, sides)
+        refused = refuse_by_size(self.life, active, matched, detection_rows, sides)
         inactive = (
             self.life.inactive()
             if self.params.appearance.gap_rematch_inactive
@@ -458,8 +459,6 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             inactive,
             refused,
         )
-        # Refused for size and not re-matched by look (or no look check at all): lost too.
-        unlike = np.union1d(unlike, refused[matched[refused] == NO_MATCH])
         sides = matched_sides(detection_rows, detections)
         if self.params.reinit_at_b:
             # The old velocity belongs to the pre-interval camera pose
@@ -482,32 +481,6 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.matched[returned] = matched[returned]
         supported = np.concatenate([active[matched[active] != NO_MATCH], returned])
         self.life.supported(t, supported, positions[supported], sides[supported])
-
-    def _refuse_by_size(
-        self, active: IntArray, matched: IntArray, detection_rows: IntArray, sides: FloatArray
-    ) -> IntArray:
-        """Drop the matches at b to heads of another size than the target's.
-
-        The ``active`` targets' stored sizes are first rescaled by the camera's change of scale
-        (``sides``: ``(K,)`` box side of each target's match, NaN when none); ``matched`` and
-        ``detection_rows`` are updated in place.
-
-        Returns:
-            The rows refused this way when ``lifecycle.size_refused_at_b`` is ``lost`` (they are
-            then refused as by the look at b); none when it is ``tentative``.
-        """
-        self.life.rescale_sizes(active, sides[active])
-        mismatch = np.diagonal(self.life.size_mismatch(np.arange(len(matched)), sides))
-        # A head of another size is someone else's: placed there, the target would take it on
-        # the next frame.
-        refused = (
-            np.flatnonzero(mismatch & (matched != NO_MATCH))
-            if self.life.settings.size_refused_at_b == "lost"
-            else np.zeros(0, dtype=np.int64)
-        )
-        matched[mismatch] = NO_MATCH
-        detection_rows[matched == NO_MATCH] = NO_MATCH
-        return refused
 
     def positions(self) -> FloatArray:
         return self.bank.means[:, :2].copy()

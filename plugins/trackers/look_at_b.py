@@ -1,8 +1,8 @@
 """The segment tracker at frame b: the gap matcher's matches checked by look, and re-matched.
 
 Used by :meth:`trackfw_plugins.trackers.kalman.KalmanTracker.reinitialise`. After an interval the
-gap matcher hands each target a detection of frame b (or none). A match that looks like someone
-else is refused, and the refused targets, with the targets lost before the interval, take by look
+gap matcher hands each target a detection of frame b (or none). A match to a head of another size,
+or one that looks like someone else, is refused, and the refused targets, with the targets lost before the interval, take by look
 alone the detections no kept match holds (docs/algorithms/segment-tracker.md#re-initialisation-at-b).
 Also the two lookups the restart needs: each target's row among the detections, and its box side.
 """
@@ -47,6 +47,37 @@ def matched_sides(detection_rows: IntArray, detections: Detections | None) -> Fl
     return sides
 
 
+def refuse_by_size(
+    life: Lifecycle,
+    active: IntArray,
+    matched: IntArray,
+    detection_rows: IntArray,
+    sides: FloatArray,
+) -> IntArray:
+    """Drop the matches at b to heads of another size than the target's.
+
+    The ``active`` targets' stored sizes are first rescaled by the camera's change of scale
+    (``sides``: ``(K,)`` box side of each target's match, NaN when none); ``matched`` and
+    ``detection_rows`` are updated in place.
+
+    Returns:
+        The rows refused this way when ``lifecycle.size_refused_at_b`` is ``lost`` (hand them
+        to :func:`check_looks_at_b` as ``refused``); none when it is ``tentative``.
+    """
+    life.rescale_sizes(active, sides[active])
+    mismatch = np.diagonal(life.size_mismatch(np.arange(len(matched)), sides))
+    # A head of another size is someone else's: placed there, the target would take it on the
+    # next frame.
+    refused = (
+        np.flatnonzero(mismatch & (matched != NO_MATCH))
+        if life.settings.size_refused_at_b == "lost"
+        else np.zeros(0, dtype=np.int64)
+    )
+    matched[mismatch] = NO_MATCH
+    detection_rows[matched == NO_MATCH] = NO_MATCH
+    return refused
+
+
 def check_looks_at_b(
     memory: AppearanceMemory,
     life: Lifecycle,
@@ -89,7 +120,8 @@ def check_looks_at_b(
     none = np.zeros(0, dtype=np.int64)
     limit = settings.gap_max_distance
     if limit is None or detections is None or len(detections) == 0:
-        return none, none
+        # Nothing to look at: the targets refused already stay without a match.
+        return (none if refused is None else refused), none
     checked = active[detection_rows[active] >= 0]
     look = memory.looks(image, checked, detections, detection_rows[checked])
     unlike = checked[np.diagonal(look) > limit]  # NaN (nothing known) refuses nothing
