@@ -348,7 +348,9 @@ def test_a_match_at_b_out_of_line_with_the_groups_scale_is_tentative() -> None:
 RED, GREEN, BLUE = (0, 0, 255), (0, 255, 0), (255, 0, 0)
 
 
-def _looked_at(gap_max_distance: float | None, rematch_ratio: float | None = 0.8) -> Any:
+def _looked_at(
+    gap_max_distance: float | None, rematch_ratio: float | None = 0.8, **lifecycle: Any
+) -> Any:
     """Three targets (red, green, blue) seen once with the patch descriptor on."""
     appearance = {
         "descriptor": "patch",
@@ -356,9 +358,8 @@ def _looked_at(gap_max_distance: float | None, rematch_ratio: float | None = 0.8
         "gap_max_distance": gap_max_distance,
         "gap_rematch_ratio": rematch_ratio,
     }
-    tracker = load_registry().build_stage(
-        "tracker", {"type": "kalman", "params": {"appearance": appearance}}
-    )
+    params = {"appearance": appearance, "lifecycle": lifecycle}
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
     tracker.start(VIDEO)
     tracker.initialise(0, np.array([1, 2, 3]), GROUP)
     colours = (RED, GREEN, BLUE)
@@ -423,16 +424,7 @@ def test_a_match_at_b_refused_for_size_is_rematched_by_look_or_left_tentative(
     # The window match put target 1 (red) on a yellow head three times its size, while its
     # own red head stands free 300 px away. Left tentative, it sits on the yellow head; refused
     # as by the look check, it takes its own head back by look.
-    appearance = {"descriptor": "patch", "max_distance": 0.3, "gap_max_distance": 0.3}
-    lifecycle = {"size_refused_at_b": size_refused_at_b}
-    tracker = load_registry().build_stage(
-        "tracker", {"type": "kalman", "params": {"appearance": appearance, "lifecycle": lifecycle}}
-    )
-    tracker.start(VIDEO)
-    tracker.initialise(0, np.array([1, 2, 3]), GROUP)
-    colours = (RED, GREEN, BLUE)
-    tracker.see(_painted([(x, y, c) for (x, y), c in zip(GROUP, colours, strict=True)]))
-    tracker.step(1, _seen(GROUP))
+    tracker = _looked_at(0.3, size_refused_at_b=size_refused_at_b)
     at_b = GROUP + np.array([0.0, 200.0])
     red_head, yellow_head = np.array([800.0, 150.0]), at_b[0]
     spots = [(*red_head, RED), (*yellow_head, (0, 255, 255)), (*at_b[1], GREEN), (*at_b[2], BLUE)]
