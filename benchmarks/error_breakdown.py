@@ -24,6 +24,11 @@ frames from each interval's frame b, where MOTA-In judges) or ``interval``. Grou
 intervals are read from intervals.csv. The share is of the ground-truth points.
 
     python benchmarks/error_breakdown.py --dataset wear-Stadtmitte --runs bench/runs/real-<hash>
+
+With ``--against`` a second runs folder of the same videos, it also lists where the two runs
+differ: each stretch of frames on which one target falls into another kind in each run, and
+how often each change of kind occurs (in ``--phase`` only, when given: ``after b`` is where
+two pipelines' MOTA-In differ).
 """
 
 from __future__ import annotations
@@ -126,6 +131,14 @@ def video_breakdown(
     video: VideoContext, run_video: Path, dist: float, near: float, after: int
 ) -> Counter[tuple[str, str]]:
     """Counts of ``(kind, phase)`` over one video's targets and frames."""
+    return Counter(video_kinds(video, run_video, dist, near, after).values())
+
+
+def video_kinds(
+    video: VideoContext, run_video: Path, dist: float, near: float, after: int
+) -> dict[tuple[int, int], tuple[str, str]]:
+    """``(kind, phase)`` of each ``(frame, target)`` of one video that is in the ground truth or
+    reported."""
     truth = video.ground_truth
     if truth is None or not truth.targets:
         raise UserError(
@@ -134,7 +147,7 @@ def video_breakdown(
     run = read_run(run_video, video.n_frames)
     detections = dict(zip(run.frames.frames.tolist(), run.frames.detections, strict=True))
     ids = sorted({target for frame in truth.targets.values() for target in frame})
-    counts: Counter[tuple[str, str]] = Counter()
+    kinds: dict[tuple[int, int], tuple[str, str]] = {}
     for frame in sorted(set(truth.targets) | set(run.tracks)):
         points = truth.targets.get(frame, {})
         truth_ids = np.array(list(points), dtype=np.int64)
@@ -155,8 +168,44 @@ def video_breakdown(
                 (dist, near),
             )
             if kind is not None:
-                counts[kind, phase] += 1
-    return counts
+                kinds[frame, target] = (kind, phase)
+    return kinds
+
+
+#: The kind of a target on a frame where it is neither in the ground truth nor reported.
+NEITHER = "not in view, not reported"
+
+
+def differences(
+    name: str,
+    first: dict[tuple[int, int], tuple[str, str]],
+    second: dict[tuple[int, int], tuple[str, str]],
+    phase: str | None,
+) -> list[tuple[str, int, int, int, str, str]]:
+    """Stretches of consecutive frames on which one target's kind differs between two runs of
+    video ``name`` (``phase`` only, when given): ``(video, target, first frame, last frame,
+    kind in the first run, kind in the second)``, frames 0-based.
+
+    >>> first = {(3, 1): ("right", "after b"), (4, 1): ("right", "after b")}
+    >>> second = {(3, 1): ("missed, detected", "after b"), (4, 1): ("missed, detected", "after b")}
+    >>> differences("v", first, second, None)
+    [('v', 1, 3, 4, 'right', 'missed, detected')]
+    >>> differences("v", first, {}, "segment")
+    []
+    """
+    stretches: list[tuple[str, int, int, int, str, str]] = []
+    for frame, target in sorted(set(first) | set(second), key=lambda key: (key[1], key[0])):
+        kind_a, phase_a = first.get((frame, target), (NEITHER, ""))
+        kind_b, phase_b = second.get((frame, target), (NEITHER, ""))
+        if kind_a == kind_b or (phase is not None and phase not in (phase_a, phase_b)):
+            continue
+        if stretches and stretches[-1][1] == target and stretches[-1][3] == frame - 1:
+            _, _, start, _, last_a, last_b = stretches[-1]
+            if (last_a, last_b) == (kind_a, kind_b):
+                stretches[-1] = (name, target, start, frame, kind_a, kind_b)
+                continue
+        stretches.append((name, target, frame, frame, kind_a, kind_b))
+    return stretches
 
 
 def _kind(
@@ -201,11 +250,24 @@ def main() -> None:
     )
     parser.add_argument("--near", type=float, default=22.0, help="'detected' distance in pixels")
     parser.add_argument("--after", type=int, default=10, help="frames from b counted as 'after b'")
+    parser.add_argument(
+        "--against", type=Path, help="a second runs folder: list where its kinds differ"
+    )
+    parser.add_argument(
+        "--phase", choices=PHASES, help="with --against: only the differences in this phase"
+    )
     args = parser.parse_args()
     counts: Counter[tuple[str, str]] = Counter()
+    changed: list[tuple[str, int, int, int, str, str]] = []
     videos = [load_video(path) for path in list_videos(args.dataset)]
     for video in videos:
-        counts += video_breakdown(video, args.runs / video.name, args.dist, args.near, args.after)
+        kinds = video_kinds(video, args.runs / video.name, args.dist, args.near, args.after)
+        counts += Counter(kinds.values())
+        if args.against is not None:
+            other = video_kinds(
+                video, args.against / video.name, args.dist, args.near, args.after
+            )
+            changed += differences(video.name, kinds, other, args.phase)
     truth = sum(
         counts[kind, phase]
         for kind in KINDS
@@ -226,6 +288,22 @@ def main() -> None:
             + "".join(f"{value:12d}" for value in row)
             + f"{sum(row):10d}{share:10.1f}"
         )
+    if args.against is not None:
+        print_differences(changed, args.against, args.phase)
+
+
+def print_differences(
+    changed: list[tuple[str, int, int, int, str, str]], against: Path, phase: str | None
+) -> None:
+    """Each stretch where the second run's kinds differ, then the frames per change of kind."""
+    where = f" ({phase})" if phase else ""
+    print(f"\nwhere {against} differs{where}: video, target, frames (1-based), kind -> kind")
+    frames: Counter[tuple[str, str]] = Counter()
+    for name, target, first, last, kind_a, kind_b in changed:
+        print(f"  {name} target {target} frames {first + 1}-{last + 1}: {kind_a} -> {kind_b}")
+        frames[kind_a, kind_b] += last - first + 1
+    for (kind_a, kind_b), count in frames.most_common():
+        print(f"{count:8d} frames  {kind_a} -> {kind_b}")
 
 
 if __name__ == "__main__":

@@ -85,6 +85,30 @@ def test_a_miss_whose_detection_is_someone_elses_head_is_covered(tmp_path: Path)
     assert counts["missed, detected", "segment"] == 0
 
 
+def test_two_runs_are_compared_stretch_by_stretch(tmp_path: Path) -> None:
+    script = _script()
+    video, run = _video(tmp_path)
+    other = tmp_path / "other" / "v"
+    other.mkdir(parents=True)
+    # The second run loses target 1 from frame 4 on (after b) and keeps everything else.
+    kept = [
+        line
+        for line in (run / TRACKS_FILE).read_text(encoding="utf-8").splitlines()
+        if not (line.split(",")[1] == "1" and int(line.split(",")[0]) >= 5)
+    ]
+    (other / TRACKS_FILE).write_text("\n".join(kept) + "\n", encoding="utf-8")
+    (other / FRAMES_FILE).write_bytes((run / FRAMES_FILE).read_bytes())
+    context = load_video(video)
+    first = script.video_kinds(context, run, 40.0, 22.0, 2)
+    second = script.video_kinds(context, other, 40.0, 22.0, 2)
+    assert script.differences("v", first, second, "after b") == [
+        ("v", 1, 4, 4, "far, on a bystander", "missed, not detected"),
+        ("v", 1, 5, 5, "right", "missed, not detected"),
+    ]
+    assert script.differences("v", first, second, "segment") == []
+    assert script.differences("v", first, first, None) == []
+
+
 def test_the_small_maths_examples_hold() -> None:
     result = doctest.testmod(_script())
     assert result.attempted > 0 and result.failed == 0
