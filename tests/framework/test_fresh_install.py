@@ -55,7 +55,14 @@ def fresh_trackfw(tmp_path_factory: pytest.TempPathFactory, request: pytest.Fixt
             source / folder,
             ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info", "build"),
         )
-    wheelhouse = request.config.cache.mkdir("trackfw-wheelhouse")
+    # The pytest cache keeps the wheels between sessions; without it (-p no:cacheprovider)
+    # this session's own folder does.
+    cache = getattr(request.config, "cache", None)
+    wheelhouse = (
+        cache.mkdir("trackfw-wheelhouse")
+        if cache is not None
+        else tmp_path_factory.mktemp("trackfw-wheelhouse")
+    )
     venv = root / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
     python = venv / "bin" / "python"
