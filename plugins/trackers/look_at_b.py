@@ -1,9 +1,10 @@
 """The segment tracker at frame b: the gap matcher's matches checked by look, and re-matched.
 
 Used by :meth:`trackfw_plugins.trackers.kalman.KalmanTracker.reinitialise`. After an interval the
-gap matcher hands each target a detection of frame b (or none). A match to a head of another size,
-or one that looks like someone else, is refused, and the refused targets, with the targets lost before the interval, take by look
-alone the detections no kept match holds (docs/algorithms/segment-tracker.md#re-initialisation-at-b).
+gap matcher hands each target a detection of frame b (or none). A match to a head of another
+size, or one that looks like someone else, is refused, and the refused targets, with the targets
+lost before the interval, take by look alone the detections no kept match holds
+(docs/algorithms/segment-tracker.md#re-initialisation-at-b).
 Also the two lookups the restart needs: each target's row among the detections, and its box side.
 """
 
