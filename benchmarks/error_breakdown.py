@@ -175,13 +175,16 @@ def video_kinds(
 #: The kind of a target on a frame where it is neither in the ground truth nor reported.
 NEITHER = "not in view, not reported"
 
+#: One stretch where two runs differ: (video, target, first frame, last frame, kind, kind).
+Stretch = tuple[str, int, int, int, str, str]
+
 
 def differences(
     name: str,
     first: dict[tuple[int, int], tuple[str, str]],
     second: dict[tuple[int, int], tuple[str, str]],
     phase: str | None,
-) -> list[tuple[str, int, int, int, str, str]]:
+) -> list[Stretch]:
     """Stretches of consecutive frames on which one target's kind differs between two runs of
     video ``name`` (``phase`` only, when given): ``(video, target, first frame, last frame,
     kind in the first run, kind in the second)``, frames 0-based.
@@ -193,7 +196,7 @@ def differences(
     >>> differences("v", first, {}, "segment")
     []
     """
-    stretches: list[tuple[str, int, int, int, str, str]] = []
+    stretches: list[Stretch] = []
     for frame, target in sorted(set(first) | set(second), key=lambda key: (key[1], key[0])):
         kind_a, phase_a = first.get((frame, target), (NEITHER, ""))
         kind_b, phase_b = second.get((frame, target), (NEITHER, ""))
@@ -258,7 +261,7 @@ def main() -> None:
     )
     args = parser.parse_args()
     counts: Counter[tuple[str, str]] = Counter()
-    changed: list[tuple[str, int, int, int, str, str]] = []
+    changed: list[Stretch] = []
     videos = [load_video(path) for path in list_videos(args.dataset)]
     for video in videos:
         kinds = video_kinds(video, args.runs / video.name, args.dist, args.near, args.after)
@@ -293,7 +296,7 @@ def main() -> None:
 
 
 def print_differences(
-    changed: list[tuple[str, int, int, int, str, str]], against: Path, phase: str | None
+    changed: list[Stretch], against: Path, phase: str | None
 ) -> None:
     """Each stretch where the second run's kinds differ, then the frames per change of kind."""
     where = f" ({phase})" if phase else ""
