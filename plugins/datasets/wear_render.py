@@ -274,6 +274,8 @@ def _meta(sequence: MotSequence, plan: VideoPlan, settings: WearSettings) -> dic
             for view in plan.views
         ],
         "segment_poses": [asdict(pose) for pose in plan.segment_poses],
+        # With the poses and the field of view, where the real frame shows in each image.
+        "source_size": [sequence.width, sequence.height],
         "horizontal_fov": settings.horizontal_fov,
         "head_proxy": f"x = left + width/2, y = top + {HEAD_FRACTION:g} height,"
         f" head_size = {HEAD_SIZE_FRACTION:g} height",

@@ -209,6 +209,7 @@ def test_poses_jump_after_each_interval_and_stay_in_range(fake_dataset: Path) ->
         meta = json.loads((video / "meta.json").read_text())
         poses = meta["segment_poses"]
         assert len(poses) == len(meta["intervals"]) + 1
+        assert meta["source_size"] == [WIDTH, HEIGHT]
         for pose in poses:
             assert (
                 abs(pose["pan"]) <= 30 and abs(pose["roll"]) <= 10 and 0.7 <= pose["scale"] <= 1.4
@@ -327,6 +328,7 @@ def test_real_tud_stadtmitte(shared_data: Path, tmp_path: Path) -> None:
     assert report.problems == []
     meta = json.loads((video / "meta.json").read_text())
     assert meta["n_frames"] == 179 and (meta["width"], meta["height"]) == (320, 240)
+    assert meta["source_size"] == [640, 480]
     assert 5 <= len(meta["targets"]) <= 7  # 7 people on frame 1
     assert len(meta["intervals"]) == 2  # one per 80 frames
     for interval in meta["intervals"]:
