@@ -29,21 +29,30 @@ With ``--against`` a second runs folder of the same videos, it also lists where 
 differ: each stretch of frames on which one target falls into another kind in each run, and
 how often each change of kind occurs (in ``--phase`` only, when given: ``after b`` is where
 two pipelines' MOTA-In differ).
+
+With ``--exits`` it splits the points reported after the target left the view by where the
+target's annotation last stood: within ``--edge`` pixels of the image's border, of the edge of
+the source frame inside the image (a ``trackfw dataset wear`` video, whose virtual camera shows a
+blurred continuation where the real frame does not reach, and whose people vanish at that
+edge), or elsewhere (hidden behind someone, or an annotation that stops).
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 from collections import Counter
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from trackfw.arrays import FloatArray, IntArray
-from trackfw.dataset import list_videos, load_video
+from trackfw.dataset import POSES_FILE, list_videos, load_video
 from trackfw.errors import UserError
 from trackfw.formats.run import read_run
 from trackfw.records import Interval, VideoContext
+from trackfw_plugins.datasets.wear_camera import CameraPose, pose_homography, transform_points
 from trackfw_plugins.evaluation.capture import bystander_heads, on_heads
 from trackfw_plugins.maths.assignment import distance_matrix
 
@@ -259,17 +268,24 @@ def main() -> None:
     parser.add_argument(
         "--phase", choices=PHASES, help="with --against: only the differences in this phase"
     )
+    parser.add_argument(
+        "--exits", action="store_true", help="split the reports after leaving by where it left"
+    )
+    parser.add_argument(
+        "--edge", type=float, default=30.0, help="with --exits: 'edge' distance in pixels"
+    )
     args = parser.parse_args()
     counts: Counter[tuple[str, str]] = Counter()
+    exits: Counter[tuple[str, str]] = Counter()
     changed: list[Stretch] = []
     videos = [load_video(path) for path in list_videos(args.dataset)]
     for video in videos:
         kinds = video_kinds(video, args.runs / video.name, args.dist, args.near, args.after)
         counts += Counter(kinds.values())
+        if args.exits:
+            exits += video_exits(video, kinds, args.edge)
         if args.against is not None:
-            other = video_kinds(
-                video, args.against / video.name, args.dist, args.near, args.after
-            )
+            other = video_kinds(video, args.against / video.name, args.dist, args.near, args.after)
             changed += differences(video.name, kinds, other, args.phase)
     truth = sum(
         counts[kind, phase]
@@ -291,13 +307,104 @@ def main() -> None:
             + "".join(f"{value:12d}" for value in row)
             + f"{sum(row):10d}{share:10.1f}"
         )
+    if args.exits:
+        print_exits(exits)
     if args.against is not None:
         print_differences(changed, args.against, args.phase)
 
 
-def print_differences(
-    changed: list[Stretch], against: Path, phase: str | None
-) -> None:
+#: Where a target reported after it left the view had last been annotated (``--exits``).
+EXITS = ("image edge", "source edge", "elsewhere", "not yet seen")
+WEAR_GENERATOR = "trackfw dataset wear"
+
+
+def where_left(
+    point: FloatArray, width: int, height: int, outline: FloatArray | None, edge: float
+) -> str:
+    """Where a target's last annotated ``(2,)`` point lies, as one of :data:`EXITS`.
+
+    ``outline`` is the ``(4, 2)`` quadrilateral of the image that shows the source frame (a
+    virtual-wearer video), or None.
+
+    >>> where_left(np.array([5.0, 200.0]), 640, 480, None, 30.0)
+    'image edge'
+    >>> shown = np.array([[100.0, 100.0], [500.0, 100.0], [500.0, 400.0], [100.0, 400.0]])
+    >>> where_left(np.array([490.0, 200.0]), 640, 480, shown, 30.0)
+    'source edge'
+    >>> where_left(np.array([300.0, 200.0]), 640, 480, shown, 30.0)
+    'elsewhere'
+    """
+    x, y = float(point[0]), float(point[1])
+    if min(x, width - 1 - x, y, height - 1 - y) < edge:
+        return "image edge"
+    if outline is not None:
+        contour = np.asarray(outline, dtype=np.float32).reshape(-1, 1, 2)
+        if abs(cv2.pointPolygonTest(contour, (x, y), True)) < edge:
+            return "source edge"
+    return "elsewhere"
+
+
+def source_outlines(video: VideoContext) -> dict[int, FloatArray]:
+    """0-based frame -> ``(4, 2)`` outline of the source frame in the image, on each frame of a
+    ``trackfw dataset wear`` video that shows the real sequence; empty for other videos.
+
+    The source size is meta.json's ``source_size`` (older sets: the video's own size, which is
+    the default of ``--size``).
+    """
+    path = Path(video.path) / POSES_FILE
+    if video.meta.get("generator") != WEAR_GENERATOR or not path.is_file():
+        return {}
+    width, height = video.meta.get("source_size", (video.width, video.height))
+    corners = np.array([[0, 0], [width, 0], [width, height], [0, height]], dtype=np.float64)
+    fields = ("pan", "tilt", "roll", "scale", "tx", "ty")
+    outlines: dict[int, FloatArray] = {}
+    with path.open(newline="", encoding="utf-8") as stream:
+        for row in csv.DictReader(stream):
+            if row.get("view", "real") != "real":
+                continue
+            pose = CameraPose(**{name: float(row[name]) for name in fields})
+            homography = pose_homography(
+                pose,
+                (int(width), int(height)),
+                (video.width, video.height),
+                float(video.meta["horizontal_fov"]),
+            )
+            outlines[int(row["frame"]) - 1] = transform_points(homography, corners)
+    return outlines
+
+
+def video_exits(
+    video: VideoContext, kinds: dict[tuple[int, int], tuple[str, str]], edge: float
+) -> Counter[tuple[str, str]]:
+    """Counts of ``(kind, exit)``: each point of a target reported after it left the view, by
+    where its annotation last stood before that frame (:func:`where_left`)."""
+    truth = video.ground_truth
+    assert truth is not None  # video_kinds has checked it
+    outlines = source_outlines(video)
+    counts: Counter[tuple[str, str]] = Counter()
+    for (frame, target), (kind, _) in kinds.items():
+        if not kind.startswith("not in view") or kind == NEITHER:
+            continue
+        seen = [t for t in truth.targets if t < frame and target in truth.targets[t]]
+        if not seen:
+            counts[kind, "not yet seen"] += 1
+            continue
+        last = max(seen)
+        point = np.asarray(truth.targets[last][target], dtype=np.float64)
+        exit_kind = where_left(point, video.width, video.height, outlines.get(last), edge)
+        counts[kind, exit_kind] += 1
+    return counts
+
+
+def print_exits(counts: Counter[tuple[str, str]]) -> None:
+    """The ``--exits`` table: reported-after-leaving kinds by where the target left."""
+    print(f"\n{'reported after it left':30s}" + "".join(f"{name:>14s}" for name in EXITS))
+    for kind in KINDS:
+        if kind.startswith("not in view") and kind != NEITHER:
+            print(f"{kind:30s}" + "".join(f"{counts[kind, name]:14d}" for name in EXITS))
+
+
+def print_differences(changed: list[Stretch], against: Path, phase: str | None) -> None:
     """Each stretch where the second run's kinds differ, then the frames per change of kind."""
     where = f" ({phase})" if phase else ""
     print(f"\nwhere {against} differs{where}: video, target, frames (1-based), kind -> kind")

@@ -109,6 +109,32 @@ def test_two_runs_are_compared_stretch_by_stretch(tmp_path: Path) -> None:
     assert script.differences("v", first, first, None) == []
 
 
+def test_reports_after_leaving_are_split_by_where_the_target_left(tmp_path: Path) -> None:
+    script = _script()
+    video, run = _video(tmp_path)
+    context = load_video(video)
+    kinds = script.video_kinds(context, run, 40.0, 22.0, 2)
+    # Target 2 was last annotated at (300, 50), 50 px below the image's top edge.
+    assert script.video_exits(context, kinds, 30.0) == {
+        ("not in view, on a target", "elsewhere"): 1
+    }
+    assert script.video_exits(context, kinds, 60.0) == {
+        ("not in view, on a target", "image edge"): 1
+    }
+    # A virtual wearer zoomed out so that the source frame's top edge shows at y = 240 - 240 s = 50.
+    scale = 190.0 / 240.0
+    rows = ["frame,pan,tilt,roll,scale,tx,ty,view"]
+    rows += [f"{t},0,0,0,{scale:.6f},0,0,real" for t in range(1, 7)]
+    (video / "poses.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+    meta = {"n_frames": 6, "width": 640, "height": 480, "fps": 25, "horizontal_fov": 80.0}
+    write_meta(video / "meta.json", {**meta, "generator": "trackfw dataset wear"})
+    worn = load_video(video)
+    assert script.video_exits(worn, kinds, 30.0) == {("not in view, on a target", "source edge"): 1}
+    # Only the wear generator's poses say where its source frame shows.
+    write_meta(video / "meta.json", {**meta, "generator": "trackfw dataset synth"})
+    assert script.source_outlines(load_video(video)) == {}
+
+
 def test_the_small_maths_examples_hold() -> None:
     result = doctest.testmod(_script())
     assert result.attempted > 0 and result.failed == 0
