@@ -70,6 +70,10 @@ KINDS = (
 )
 PHASES = ("segment", "after b", "interval")
 
+#: Where a target reported after it left the view had last been annotated (``--exits``).
+EXITS = ("image edge", "source edge", "elsewhere", "not yet seen")
+WEAR_GENERATOR = "trackfw dataset wear"
+
 
 def phase_of(frame: int, intervals: list[Interval], after: int) -> str:
     """Where 0-based ``frame`` lies: inside an interval, in the first ``after`` frames from b, or
@@ -251,73 +255,6 @@ def _kind(
     return "far, " + place_of(point, others, bystanders, dist)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument(
-        "--dataset", type=Path, required=True, help="dataset folder (gt.csv per video)"
-    )
-    parser.add_argument("--runs", type=Path, required=True, help="runs folder (one per video)")
-    parser.add_argument(
-        "--dist", type=float, default=40.0, help="match distance in pixels (as eval)"
-    )
-    parser.add_argument("--near", type=float, default=22.0, help="'detected' distance in pixels")
-    parser.add_argument("--after", type=int, default=10, help="frames from b counted as 'after b'")
-    parser.add_argument(
-        "--against", type=Path, help="a second runs folder: list where its kinds differ"
-    )
-    parser.add_argument(
-        "--phase", choices=PHASES, help="with --against: only the differences in this phase"
-    )
-    parser.add_argument(
-        "--exits", action="store_true", help="split the reports after leaving by where it left"
-    )
-    parser.add_argument(
-        "--edge", type=float, default=30.0, help="with --exits: 'edge' distance in pixels"
-    )
-    args = parser.parse_args()
-    counts: Counter[tuple[str, str]] = Counter()
-    exits: Counter[tuple[str, str]] = Counter()
-    changed: list[Stretch] = []
-    videos = [load_video(path) for path in list_videos(args.dataset)]
-    for video in videos:
-        kinds = video_kinds(video, args.runs / video.name, args.dist, args.near, args.after)
-        counts += Counter(kinds.values())
-        if args.exits:
-            exits += video_exits(video, kinds, args.edge)
-        if args.against is not None:
-            other = video_kinds(video, args.against / video.name, args.dist, args.near, args.after)
-            changed += differences(video.name, kinds, other, args.phase)
-    truth = sum(
-        counts[kind, phase]
-        for kind in KINDS
-        if not kind.startswith("not in view")
-        for phase in PHASES
-    )
-    print(f"{len(videos)} videos of {args.dataset}, runs {args.runs}; {truth} ground-truth points")
-    print(
-        f"{'kind':30s}"
-        + "".join(f"{phase:>12s}" for phase in PHASES)
-        + f"{'all':>10s}{'% of gt':>10s}"
-    )
-    for kind in KINDS:
-        row = [counts[kind, phase] for phase in PHASES]
-        share = 100.0 * sum(row) / max(truth, 1)
-        print(
-            f"{kind:30s}"
-            + "".join(f"{value:12d}" for value in row)
-            + f"{sum(row):10d}{share:10.1f}"
-        )
-    if args.exits:
-        print_exits(exits)
-    if args.against is not None:
-        print_differences(changed, args.against, args.phase)
-
-
-#: Where a target reported after it left the view had last been annotated (``--exits``).
-EXITS = ("image edge", "source edge", "elsewhere", "not yet seen")
-WEAR_GENERATOR = "trackfw dataset wear"
-
-
 def where_left(
     point: FloatArray, width: int, height: int, outline: FloatArray | None, edge: float
 ) -> str:
@@ -402,6 +339,68 @@ def print_exits(counts: Counter[tuple[str, str]]) -> None:
     for kind in KINDS:
         if kind.startswith("not in view") and kind != NEITHER:
             print(f"{kind:30s}" + "".join(f"{counts[kind, name]:14d}" for name in EXITS))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument(
+        "--dataset", type=Path, required=True, help="dataset folder (gt.csv per video)"
+    )
+    parser.add_argument("--runs", type=Path, required=True, help="runs folder (one per video)")
+    parser.add_argument(
+        "--dist", type=float, default=40.0, help="match distance in pixels (as eval)"
+    )
+    parser.add_argument("--near", type=float, default=22.0, help="'detected' distance in pixels")
+    parser.add_argument("--after", type=int, default=10, help="frames from b counted as 'after b'")
+    parser.add_argument(
+        "--against", type=Path, help="a second runs folder: list where its kinds differ"
+    )
+    parser.add_argument(
+        "--phase", choices=PHASES, help="with --against: only the differences in this phase"
+    )
+    parser.add_argument(
+        "--exits", action="store_true", help="split the reports after leaving by where it left"
+    )
+    parser.add_argument(
+        "--edge", type=float, default=30.0, help="with --exits: 'edge' distance in pixels"
+    )
+    args = parser.parse_args()
+    counts: Counter[tuple[str, str]] = Counter()
+    exits: Counter[tuple[str, str]] = Counter()
+    changed: list[Stretch] = []
+    videos = [load_video(path) for path in list_videos(args.dataset)]
+    for video in videos:
+        kinds = video_kinds(video, args.runs / video.name, args.dist, args.near, args.after)
+        counts += Counter(kinds.values())
+        if args.exits:
+            exits += video_exits(video, kinds, args.edge)
+        if args.against is not None:
+            other = video_kinds(video, args.against / video.name, args.dist, args.near, args.after)
+            changed += differences(video.name, kinds, other, args.phase)
+    truth = sum(
+        counts[kind, phase]
+        for kind in KINDS
+        if not kind.startswith("not in view")
+        for phase in PHASES
+    )
+    print(f"{len(videos)} videos of {args.dataset}, runs {args.runs}; {truth} ground-truth points")
+    print(
+        f"{'kind':30s}"
+        + "".join(f"{phase:>12s}" for phase in PHASES)
+        + f"{'all':>10s}{'% of gt':>10s}"
+    )
+    for kind in KINDS:
+        row = [counts[kind, phase] for phase in PHASES]
+        share = 100.0 * sum(row) / max(truth, 1)
+        print(
+            f"{kind:30s}"
+            + "".join(f"{value:12d}" for value in row)
+            + f"{sum(row):10d}{share:10.1f}"
+        )
+    if args.exits:
+        print_exits(exits)
+    if args.against is not None:
+        print_differences(changed, args.against, args.phase)
 
 
 def print_differences(changed: list[Stretch], against: Path, phase: str | None) -> None:
