@@ -40,8 +40,10 @@ edge), or elsewhere (hidden behind someone, or an annotation that stops).
 from __future__ import annotations
 
 import argparse
+import bisect
 import csv
 from collections import Counter
+from dataclasses import fields
 from pathlib import Path
 
 import cv2
@@ -53,6 +55,7 @@ from trackfw.errors import UserError
 from trackfw.formats.run import read_run
 from trackfw.records import Interval, VideoContext
 from trackfw_plugins.datasets.wear_camera import CameraPose, pose_homography, transform_points
+from trackfw_plugins.datasets.wear_render import GENERATOR as WEAR_GENERATOR
 from trackfw_plugins.evaluation.capture import bystander_heads, on_heads
 from trackfw_plugins.maths.assignment import distance_matrix
 
@@ -72,7 +75,6 @@ PHASES = ("segment", "after b", "interval")
 
 #: Where a target reported after it left the view had last been annotated (``--exits``).
 EXITS = ("image edge", "source edge", "elsewhere", "not yet seen")
-WEAR_GENERATOR = "trackfw dataset wear"
 
 
 def phase_of(frame: int, intervals: list[Interval], after: int) -> str:
@@ -293,13 +295,13 @@ def source_outlines(video: VideoContext) -> dict[int, FloatArray]:
         return {}
     width, height = video.meta.get("source_size", (video.width, video.height))
     corners = np.array([[0, 0], [width, 0], [width, height], [0, height]], dtype=np.float64)
-    fields = ("pan", "tilt", "roll", "scale", "tx", "ty")
+    names = [field.name for field in fields(CameraPose)]
     outlines: dict[int, FloatArray] = {}
     with path.open(newline="", encoding="utf-8") as stream:
         for row in csv.DictReader(stream):
             if row.get("view", "real") != "real":
                 continue
-            pose = CameraPose(**{name: float(row[name]) for name in fields})
+            pose = CameraPose(**{name: float(row[name]) for name in names})
             homography = pose_homography(
                 pose,
                 (int(width), int(height)),
@@ -318,15 +320,20 @@ def video_exits(
     truth = video.ground_truth
     assert truth is not None  # video_kinds has checked it
     outlines = source_outlines(video)
+    annotated: dict[int, list[int]] = {}
+    for frame in sorted(truth.targets):
+        for target in truth.targets[frame]:
+            annotated.setdefault(target, []).append(frame)
     counts: Counter[tuple[str, str]] = Counter()
     for (frame, target), (kind, _) in kinds.items():
         if not kind.startswith("not in view") or kind == NEITHER:
             continue
-        seen = [t for t in truth.targets if t < frame and target in truth.targets[t]]
-        if not seen:
+        frames = annotated.get(target, [])
+        before = bisect.bisect_left(frames, frame)
+        if before == 0:
             counts[kind, "not yet seen"] += 1
             continue
-        last = max(seen)
+        last = frames[before - 1]
         point = np.asarray(truth.targets[last][target], dtype=np.float64)
         exit_kind = where_left(point, video.width, video.height, outlines.get(last), edge)
         counts[kind, exit_kind] += 1

@@ -38,6 +38,8 @@ if TYPE_CHECKING:
     from trackfw_plugins.datasets.wear_intervals import InfolessView
 
 POSE_COLUMNS = ("frame", "pan", "tilt", "roll", "scale", "tx", "ty", "view")
+#: meta.json's ``generator`` of the videos this module writes.
+GENERATOR = "trackfw dataset wear"
 
 
 def _look_pose(view: InfolessView, base: CameraPose) -> CameraPose:
@@ -260,7 +262,7 @@ def _meta(sequence: MotSequence, plan: VideoPlan, settings: WearSettings) -> dic
         "source_path": str(sequence.path),
         "seed": plan.seed,
         "video_index": plan.index,
-        "generator": "trackfw dataset wear",
+        "generator": GENERATOR,
         "format": settings.frame_format.value,
         "targets": plan.targets,
         "intervals": [
