@@ -284,6 +284,7 @@ class _OnlineLoop:
         self.reported: list[tuple[int, FloatArray, np.ndarray]] = []
         self.segment_numbers: list[int] = []  # of each reported frame: +1 at each frame b
         self.segment: Segment | None = None
+        self.withdrawn: set[tuple[int, int]] = set()  # (frame, target row) taken back
         self.initialised_from = ""
         self.interval_open = False
 
@@ -309,10 +310,20 @@ class _OnlineLoop:
         statuses = np.asarray(self.stages.tracker.statuses(), dtype=object)
         self.segment.add(observation, positions)
         self.reported.append((observation.t, positions, statuses == TRACKED))
+        self._withdraw(self.stages.tracker.withdrawn())
         self.segment_numbers.append(len(self.gaps))
         observation.record.target_states = {
             state: int(np.count_nonzero(statuses == state)) for state in TARGET_STATES
         }
+
+    def _withdraw(self, withdrawals: list[tuple[int, int]]) -> None:
+        """Unreport each ``(target row, first frame)`` withdrawal up to the last frame."""
+        for row, since in withdrawals:
+            for t, _, reported in reversed(self.reported):
+                if t < since:
+                    break
+                reported[row] = False
+                self.withdrawn.add((t, row))
 
     def _initialise(self, observation: Observation) -> Segment:
         chosen = self.targets.choose(self.video, observation.t, observation.detections)
@@ -392,6 +403,10 @@ class _OnlineLoop:
             self.fill_after_b_frames,
             self.fill_after_b_min_reports,
         )
+        index = {t: i for i, t in enumerate(frames)}
+        for t, row in self.withdrawn:
+            # Withdrawn reports are not absences to fill: they were someone else.
+            reported[index[t]][row] = False
         return list(zip(frames, positions, reported, strict=True))
 
 

@@ -285,6 +285,18 @@ class Tracker(Stage[P]):
         """
         return [state.status for state in self.states()]
 
+    def withdrawn(self) -> list[tuple[int, int]]:
+        """Reports to take back, found since the last call: ``(target row, first frame)`` pairs.
+
+        A tracker that learns, some frames after b, that a match at b was someone else's may
+        withdraw that target's reports from frame b on. The engine calls this on every tracked
+        frame, after the tracker's call, and unreports the target from that frame up to the
+        current one; filling
+        short absences (``engine.fill_missing_s``) never puts them back. The default withdraws
+        nothing.
+        """
+        return []
+
     def positions(self) -> FloatArray:
         """``(K, 2)`` current positions; override when it can be cheaper than :meth:`states`.
 

@@ -9,7 +9,8 @@ Its parameters are in :mod:`trackfw_plugins.trackers.kalman_params`. The filter 
 :mod:`trackfw_plugins.maths.assignment`, the targets' states (tracked, lost, out-of-view,
 tentative) and their re-acquisition in :mod:`trackfw_plugins.trackers.lifecycle`, the bystanders'
 anonymous tracks in :mod:`trackfw_plugins.trackers.bystanders`, the look check of the matches at b
-in :mod:`trackfw_plugins.trackers.look_at_b`, camera-motion compensation in
+in :mod:`trackfw_plugins.trackers.look_at_b`, the walk check after b in
+:mod:`trackfw_plugins.trackers.walk_check`, camera-motion compensation in
 :mod:`trackfw_plugins.trackers.camera_motion`.
 """
 
@@ -23,6 +24,7 @@ from trackfw.records import (
     NO_MATCH,
     OUT_OF_VIEW,
     TENTATIVE,
+    TRACKED,
     Detections,
     TargetState,
     VideoContext,
@@ -49,6 +51,7 @@ from trackfw_plugins.trackers.look_at_b import (
     refuse_by_size,
 )
 from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio, stands_out
+from trackfw_plugins.trackers.walk_check import Snapshot, WalkCheck
 
 #: Seconds between two searches of the whole frame for a lost target's look (each describes every
 #: detection of the frame; a returner found within 0.2 s misses at most a few frames).
@@ -67,7 +70,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
 
     @property
     def needs_pixels(self) -> bool:
-        return self.params.appearance.descriptor != "none" or self.params.cmc
+        params = self.params
+        return params.appearance.descriptor != "none" or params.cmc or params.walk_check is not None
 
     def see(self, image: UInt8Array | None) -> None:
         self.image = image
@@ -104,6 +108,34 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         )
         if self.frame_motion is not None:
             self.frame_motion.remember(self.image, None)
+        self.walk_check = (
+            None
+            if params.walk_check is None
+            else WalkCheck(params.walk_check, self.life.fps, self.video.height)
+        )
+
+    def withdrawn(self) -> list[tuple[int, int]]:
+        return [] if self.walk_check is None else self.walk_check.take_withdrawn()
+
+    def _snapshot(self, t: int, detections: Detections | None) -> Snapshot:
+        boxes = None if detections is None else detections.boxes
+        return Snapshot(t, self.image, boxes, self.bank.means[:, :2].copy())
+
+    def _check_walks(self, t: int, detections: Detections) -> None:
+        """Undo the matches at b whose person walked back (:mod:`.walk_check`)."""
+        check = self.walk_check
+        if check is None:
+            return
+        now = self._snapshot(t, detections)
+        holding = np.flatnonzero((self.life.status == TRACKED) & (self.matched != NO_MATCH))
+        for row, pending in check.due(now, holding):
+            self.life.set(np.array([row]), LOST, t)
+            self.matched[row] = NO_MATCH
+            # The look it had at b: the one taken since may be the other person's.
+            self.memory.descriptors[row] = pending.descriptor
+            self.memory.described_at[row] = pending.described_at
+            check.withdraw(row)
+        check.remember(now)
 
     def associate(
         self, predicted: FloatArray, detections: Detections, rows: IntArray | None = None
@@ -233,6 +265,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
                 self.gate,
                 holders,
             )
+        self._check_walks(t, detections)
 
     def _shared_at_start(
         self, active: IntArray, detections: Detections
@@ -481,6 +514,13 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.matched[returned] = matched[returned]
         supported = np.concatenate([active[matched[active] != NO_MATCH], returned])
         self.life.supported(t, supported, positions[supported], sides[supported])
+        if self.walk_check is not None:
+            self.walk_check.arm(
+                self._snapshot(t, detections),
+                active[matched[active] != NO_MATCH],
+                self.memory.descriptors,
+                self.memory.described_at,
+            )
 
     def positions(self) -> FloatArray:
         return self.bank.means[:, :2].copy()

@@ -3,7 +3,8 @@
 See docs/algorithms/segment-tracker.md#parameters. The settings of its parts live beside those
 parts: the lifecycle's in :mod:`trackfw_plugins.trackers.lifecycle`, the look's in
 :mod:`trackfw_plugins.trackers.appearance_memory`, the bystander tracks' in
-:mod:`trackfw_plugins.trackers.bystanders`.
+:mod:`trackfw_plugins.trackers.bystanders`, the walk check's in
+:mod:`trackfw_plugins.trackers.walk_check`.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from trackfw_plugins.trackers.appearance_memory import AppearanceSettings
 from trackfw_plugins.trackers.bystanders import BystanderSettings
 from trackfw_plugins.trackers.camera_motion import consecutive_frames_registration
 from trackfw_plugins.trackers.lifecycle import LifecycleSettings
+from trackfw_plugins.trackers.walk_check import WalkCheckSettings
 
 
 class KalmanTrackerParams(StageParams):
@@ -88,6 +90,12 @@ class KalmanTrackerParams(StageParams):
         description="also follow the heads no target holds, as anonymous tracks that compete"
         " with the targets in the association (Hungarian only), so that a target whose head"
         " was missed does not take a passing bystander's; null = off",
+    )
+    walk_check: WalkCheckSettings | None = Field(
+        None,
+        description="each match at b checked by the walk after it: a target whose person walks"
+        " back from the target's walk before a is lost and its reports since b withdrawn;"
+        " None = off (docs/algorithms/segment-tracker.md#the-walk-after-b)",
     )
     cmc: bool = Field(
         False,

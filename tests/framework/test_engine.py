@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 from pathlib import Path
+from types import ModuleType
 
 import cv2
 import numpy as np
@@ -13,9 +14,11 @@ import pytest
 from trackfw.dataset import load_video
 from trackfw.engine import Engine
 from trackfw.formats.run import write_run
+from trackfw.hookspecs import hookimpl
 from trackfw.pipeline import load_pipeline
 from trackfw.records import Detections, FrameData
 from trackfw.registry import Registry, load_registry
+from trackfw_plugins.trackers.kalman import KalmanTracker
 
 from .conftest import PixelCentreDetector, registry_with
 
@@ -260,3 +263,45 @@ def test_ground_truth_files_without_rows(tmp_path: Path) -> None:
     (tmp_path / "heads.csv").write_text("frame,id,x,y,head_size\n")
     (tmp_path / "gt.csv").write_text("frame,id,x,y\n")
     assert read_heads(tmp_path / "heads.csv") == {} and read_targets(tmp_path / "gt.csv") == {}
+
+
+class _WithdrawingTracker(KalmanTracker):
+    """The Kalman tracker that, 5 frames after each b, withdraws target row 0's reports."""
+
+    name = "withdrawing"
+
+    def reinitialise(self, t, positions, matched_detection, detections=None) -> None:  # type: ignore[no-untyped-def]
+        super().reinitialise(t, positions, matched_detection, detections)
+        self.b = t
+
+    def step(self, t: int, detections: Detections) -> None:
+        super().step(t, detections)
+        self.due = getattr(self, "b", None) is not None and t == self.b + 5
+
+    def withdrawn(self) -> list[tuple[int, int]]:
+        return [(0, self.b)] if getattr(self, "due", False) else []
+
+
+def test_withdrawn_reports_are_taken_back_and_not_filled_in(points_video, pipeline_file) -> None:
+    module = ModuleType("withdrawing_plugin")
+
+    @hookimpl
+    def trackfw_register_stages(registry: Registry) -> None:
+        registry.add_tracker(_WithdrawingTracker)
+
+    module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
+    registry = load_registry(extra_modules=[("withdrawing", module)])
+    video = points_video(n_frames=100, intervals=[(40, 50)])
+    text = pipeline_file().read_text().replace("{type: kalman,", "{type: withdrawing,")
+    text += "engine: {fill_missing_s: 1.0, fill_after_b_s: 1.0}\n"
+    run, _ = _run(video, pipeline_file(text, "withdrawing.yaml"), registry=registry)
+    tracked = _tracked(run)
+    first = int(run.gaps[0].interval.b)
+    withdrawn_id = int(run.target_ids[0])
+    # Reported before the interval; not from b to the frame of the withdrawal, even though the
+    # target is reported again right after it (a short absence the filling would otherwise close).
+    assert withdrawn_id in tracked[first - 15]
+    assert all(withdrawn_id not in tracked.get(t, {}) for t in range(first, first + 6))
+    assert withdrawn_id in tracked[first + 6]
+    # The other targets are untouched.
+    assert all(len(tracked[t]) == len(run.target_ids) - 1 for t in range(first, first + 6))
