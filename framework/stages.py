@@ -291,9 +291,8 @@ class Tracker(Stage[P]):
         A tracker that learns, some frames after b, that a match at b was someone else's may
         withdraw that target's reports from frame b on. The engine calls this on every tracked
         frame, after the tracker's call, and unreports the target from that frame up to the
-        current one; filling
-        short absences (``engine.fill_missing_s``) never puts them back. The default withdraws
-        nothing.
+        current one; filling short absences (``engine.fill_missing_s``) never puts them back.
+        The default withdraws nothing.
         """
         return []
 

@@ -87,6 +87,18 @@ class SceneRegistration:
         """Map ``(P, 2)`` frame-a pixels to frame b."""
         return transform_points(self.matrix, points)
 
+    def walks(self, at_a: FloatArray, at_b: FloatArray, frames: int) -> FloatArray:
+        """``(P, 2)`` pixels per frame each point moved against the scene from ``(P, 2)``
+        ``at_a`` on frame a to ``at_b`` on frame b, ``frames`` frames later: its motion with the
+        camera's registered out (a walker's own walk, not the wearer's sway).
+
+        >>> shift = np.array([[1.0, 0.0, -10.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+        >>> camera = SceneRegistration(shift, True, 50, 40, 0.5)  # the view slid 10 px left
+        >>> camera.walks(np.array([[100.0, 50.0]]), np.array([[110.0, 50.0]]), 10).tolist()
+        [[2.0, 0.0]]
+        """
+        return (np.asarray(at_b, dtype=np.float64) - self.apply(at_a)) / frames
+
     def summary(self) -> dict[str, object]:
         """JSON-ready record for gaps.json."""
         return {

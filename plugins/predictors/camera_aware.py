@@ -112,7 +112,7 @@ def walked_forecast(
     if not registration.ok:
         return None
     at_a = problem.positions_at_a
-    velocity = (at_a - registration.apply(lookback.positions)) / steps
+    velocity = registration.walks(lookback.positions, at_a, steps)
     result: FloatArray = at_a + velocity * problem.horizon
     return result
 

@@ -127,7 +127,11 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         if check is None:
             return
         now = self._snapshot(t, detections)
-        holding = np.flatnonzero((self.life.status == TRACKED) & (self.matched != NO_MATCH))
+        holding = (
+            np.flatnonzero((self.life.status == TRACKED) & (self.matched != NO_MATCH))
+            if check.pending
+            else np.zeros(0, dtype=np.int64)
+        )
         for row, pending in check.due(now, holding):
             self.life.set(np.array([row]), LOST, t)
             self.matched[row] = NO_MATCH

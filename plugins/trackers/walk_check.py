@@ -21,11 +21,8 @@ from pydantic import ConfigDict, Field
 
 from trackfw.arrays import FloatArray, IntArray, UInt8Array
 from trackfw.stages import FiniteModel
-from trackfw_plugins.maths.scene_registration import (
-    RegistrationSettings,
-    SceneRegistration,
-    register_scene,
-)
+from trackfw_plugins.maths.scene_registration import SceneRegistration, register_scene
+from trackfw_plugins.trackers.camera_motion import consecutive_frames_registration
 
 #: Frame height the speed limit is given at.
 REFERENCE_HEIGHT = 1080.0
@@ -117,9 +114,9 @@ class WalkCheck:
         self.frames = max(1, round(settings.after_s * fps))
         # Pixels per frame at this video's height and frame rate.
         self.min_speed = settings.min_speed_px_s_at_1080 * height / REFERENCE_HEIGHT / fps
-        # Half a second of camera motion: the camera barely zooms, a similarity suffices.
-        self.registration = RegistrationSettings(
-            model="similarity", max_features=500, max_area_change=1.3
+        # The registration of consecutive frames, given half a second's room to zoom.
+        self.registration = consecutive_frames_registration().model_copy(
+            update={"max_area_change": 1.3}
         )
         self.recent: list[Snapshot] = []
         self.at_b: Snapshot | None = None
@@ -137,8 +134,7 @@ class WalkCheck:
         registration = self._register(first, last)
         if registration is None:
             return None
-        moved = registration.apply(first.positions)
-        return (last.positions - moved) / max(last.t - first.t, 1)
+        return registration.walks(first.positions, last.positions, max(last.t - first.t, 1))
 
     def _register(self, first: Snapshot, last: Snapshot) -> SceneRegistration | None:
         if first.image is None or last.image is None:
