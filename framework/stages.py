@@ -289,7 +289,8 @@ class Tracker(Stage[P]):
         """Reports to take back, found since the last call: ``(target row, first frame)`` pairs.
 
         A tracker that learns, some frames after b, that a match at b was someone else's may
-        withdraw that target's reports from frame b on. The engine calls this on every tracked
+        withdraw that target's reports from frame b on (or, some frames after the start, that
+        the target followed someone else from its start). The engine calls this on every tracked
         frame, after the tracker's call, and unreports the target from that frame up to the
         current one; filling short absences (``engine.fill_missing_s``) never puts them back.
         The default withdraws nothing.

@@ -204,6 +204,13 @@ class AppearanceMemory:
         ]
         return np.array(swapped, dtype=np.int64)
 
+    def forget(self, target: int) -> None:
+        """Target ``target`` was described from someone else's crops (a start split): its next
+        crop describes it afresh."""
+        self.descriptors[target] = None
+        self.described_at[target] = -(10**9)
+        self.unlike_at[target] = -1
+
     def _add(self, t: int, target: int, descriptor: FloatArray) -> bool:
         """Keep target ``target``'s fresh ``(D,)`` descriptor unless it looks like someone else.
 

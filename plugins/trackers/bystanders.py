@@ -69,12 +69,16 @@ class Bystanders:
         hits: ``(B,)`` frames in a row each track had a detection.
         misses: ``(B,)`` frames in a row each track went without one.
         confirmed: ``(B,)`` whether each track once had ``confirm_frames`` hits in a row.
-        claimed: ``(B,)`` row of the current frame's detections each track took (-1: none).
+        claimed: ``(B,)`` row of the current frame's detections each track took (-1: none); in
+            the joint assignment, then after :meth:`update` every track's.
         apart: ``(B, K)`` whether each track, since it last came within ``apart_gates``
             association gates of target k's detection or went a frame without a detection, was
             seen farther than that from target k's detection on some frame: then it is someone
             else.
         assigned: whether the joint assignment with the targets ran on the current frame.
+        age: ``(B,)`` frames since each track's first detection.
+        first: ``(B, 2)`` each track's first detection (NaN once it took over a target's
+            filter: its path then tells nothing; :meth:`take_over`).
     """
 
     settings: BystanderSettings
@@ -85,6 +89,8 @@ class Bystanders:
     claimed: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     apart: BoolArray = field(default_factory=lambda: np.zeros((0, 0), dtype=bool))
     assigned: bool = False
+    age: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    first: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
 
     @classmethod
     def start(
@@ -111,6 +117,18 @@ class Bystanders:
         self.bank.predict()
         self.claimed = np.full(len(self), -1, dtype=np.int64)
         self.assigned = False
+        self.age = self.age + 1
+
+    def take_over(
+        self, row: int, mean: FloatArray, covariance: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """Track ``row`` goes on from a target's ``(4,)`` filter mean and ``(4, 4)`` covariance
+        (a start split: :mod:`.start_split`); returns the track's own, for the target."""
+        own = self.bank.means[row].copy(), self.bank.covariances[row].copy()
+        self.bank.means[row] = mean
+        self.bank.covariances[row] = covariance
+        self.first[row] = np.nan
+        return own
 
     def warp(self, matrix: FloatArray) -> None:
         """Carry every track through the camera motion (see :meth:`KalmanBank.warp`)."""
@@ -212,10 +230,11 @@ class Bystanders:
         near = self._near(self.bank.positions, target_points, target_sides)
         coasting = self.confirmed & (self.misses < self.settings.end_after_frames)
         keep = ~lost_to_target & ~near & (hit | coasting)
+        self.claimed = claimed
         self._keep(keep)
         rest = np.setdiff1d(free, claimed[hit])
         new = rest[~self._near(points[rest], target_points, target_sides)]
-        self._add(points[new])
+        self._add(points[new], new)
         self._see(target_points, holders, gate)
 
     def _near(
@@ -233,6 +252,7 @@ class Bystanders:
         self.hits, self.misses = self.hits[keep], self.misses[keep]
         self.confirmed, self.claimed = self.confirmed[keep], self.claimed[keep]
         self.apart = self.apart[keep]
+        self.age, self.first = self.age[keep], self.first[keep]
 
     def _see(self, target_points: FloatArray, holders: IntArray | None, gate: float | None) -> None:
         """Update ``apart`` at the end of the frame against the targets' detections
@@ -247,14 +267,17 @@ class Bystanders:
         reach = np.inf if gate is None else self.settings.apart_gates * gate
         self.apart[np.ix_(rows, holders)] = distance > reach
 
-    def _add(self, positions: FloatArray) -> None:
+    def _add(self, positions: FloatArray, rows: IntArray) -> None:
+        """Start tracks at ``(M, 2)`` positions, this frame's detection ``rows``."""
         self.bank.add(positions)
         count = len(positions)
         self.hits = np.concatenate([self.hits, np.ones(count, dtype=np.int64)])
         self.misses = np.concatenate([self.misses, np.zeros(count, dtype=np.int64)])
         confirmed = np.full(count, self.settings.confirm_frames <= 1)
         self.confirmed = np.concatenate([self.confirmed, confirmed])
-        self.claimed = np.concatenate([self.claimed, np.full(count, -1, dtype=np.int64)])
+        self.claimed = np.concatenate([self.claimed, np.asarray(rows, dtype=np.int64)])
         self.apart = np.concatenate(
             [self.apart, np.zeros((count, self.apart.shape[1]), dtype=bool)]
         )
+        self.age = np.concatenate([self.age, np.zeros(count, dtype=np.int64)])
+        self.first = np.concatenate([self.first, np.asarray(positions, dtype=np.float64)])

@@ -10,7 +10,8 @@ Its parameters are in :mod:`trackfw_plugins.trackers.kalman_params`. The filter 
 tentative) and their re-acquisition in :mod:`trackfw_plugins.trackers.lifecycle`, the bystanders'
 anonymous tracks in :mod:`trackfw_plugins.trackers.bystanders`, the look check of the matches at b
 in :mod:`trackfw_plugins.trackers.look_at_b`, the walk check after b in
-:mod:`trackfw_plugins.trackers.walk_check`, camera-motion compensation in
+:mod:`trackfw_plugins.trackers.walk_check`, the start split in
+:mod:`trackfw_plugins.trackers.start_split`, camera-motion compensation in
 :mod:`trackfw_plugins.trackers.camera_motion`.
 """
 
@@ -51,6 +52,7 @@ from trackfw_plugins.trackers.look_at_b import (
     refuse_by_size,
 )
 from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio, stands_out
+from trackfw_plugins.trackers.start_split import StartSplit
 from trackfw_plugins.trackers.walk_check import Snapshot, WalkCheck
 
 #: Seconds between two searches of the whole frame for a lost target's look (each describes every
@@ -113,9 +115,23 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             if params.walk_check is None
             else WalkCheck(params.walk_check, self.life.fps, self.video.height)
         )
+        self.start_split = (
+            None
+            if params.start_split is None or self.bystanders is None
+            else StartSplit.begin(
+                params.start_split,
+                self.life.fps,
+                (self.video.width, self.video.height),
+                t,
+                positions,
+            )
+        )
+        self.split_withdrawals: list[tuple[int, int]] = []
 
     def withdrawn(self) -> list[tuple[int, int]]:
-        return [] if self.walk_check is None else self.walk_check.take_withdrawn()
+        walks = [] if self.walk_check is None else self.walk_check.take_withdrawn()
+        splits, self.split_withdrawals = self.split_withdrawals, []
+        return walks + splits
 
     def _snapshot(self, t: int, detections: Detections | None) -> Snapshot:
         boxes = None if detections is None else detections.boxes
@@ -269,7 +285,33 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
                 self.gate,
                 holders,
             )
+            self._split_start(t, detections, targets, taken, sides)
         self._check_walks(t, detections)
+
+    def _split_start(
+        self, t: int, detections: Detections, targets: IntArray, taken: IntArray, sides: FloatArray
+    ) -> None:
+        """Trade places with the bystander track whose path leads back to a target's given
+        point (:mod:`.start_split`); ``targets`` took detection rows ``taken`` this frame."""
+        split, bystanders = self.start_split, self.bystanders
+        if split is None or bystanders is None:
+            return
+        split.first_step(t, targets, detections.points[taken], sides[taken])
+        tracked = np.flatnonzero(self.life.status == TRACKED)
+        trades = split.due(
+            t, tracked, self.bank.positions[tracked], bystanders, detections.points, sides
+        )
+        for row, track in trades:
+            column = int(bystanders.claimed[track])
+            mean, covariance = bystanders.take_over(
+                track, self.bank.means[row].copy(), self.bank.covariances[row].copy()
+            )
+            self.bank.means[row], self.bank.covariances[row] = mean, covariance
+            self.matched[row] = detections.index[column]
+            self.life.supported(t, np.array([row]), detections.points[[column]], sides[[column]])
+            # Its look and size so far were the passer-by's.
+            self.memory.forget(row)
+            self.split_withdrawals.append((row, split.start + 1))
 
     def _shared_at_start(
         self, active: IntArray, detections: Detections

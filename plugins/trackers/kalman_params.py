@@ -4,14 +4,15 @@ See docs/algorithms/segment-tracker.md#parameters. The settings of its parts liv
 parts: the lifecycle's in :mod:`trackfw_plugins.trackers.lifecycle`, the look's in
 :mod:`trackfw_plugins.trackers.appearance_memory`, the bystander tracks' in
 :mod:`trackfw_plugins.trackers.bystanders`, the walk check's in
-:mod:`trackfw_plugins.trackers.walk_check`.
+:mod:`trackfw_plugins.trackers.walk_check`, the start split's in
+:mod:`trackfw_plugins.trackers.start_split`.
 """
 
 from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from trackfw.stages import StageParams
 from trackfw_plugins.maths.kalman import PAPER_P0, PAPER_Q, PAPER_R
@@ -21,6 +22,7 @@ from trackfw_plugins.trackers.appearance_memory import AppearanceSettings
 from trackfw_plugins.trackers.bystanders import BystanderSettings
 from trackfw_plugins.trackers.camera_motion import consecutive_frames_registration
 from trackfw_plugins.trackers.lifecycle import LifecycleSettings
+from trackfw_plugins.trackers.start_split import StartSplitSettings
 from trackfw_plugins.trackers.walk_check import WalkCheckSettings
 
 
@@ -54,6 +56,13 @@ class KalmanTrackerParams(StageParams):
         " hold their given positions (as if hidden) until each has a detection of its own: one"
         " box for two people who stand close together moves with one of them, and the target"
         " that took it would follow the other person",
+    )
+    start_split: StartSplitSettings | None = Field(
+        None,
+        description="over the first half second, a target whose box split trades places with"
+        " the new head whose path leads back to its given point (it was given on a box it"
+        " shared with a passer-by); needs bystanders; null = off"
+        " (docs/algorithms/segment-tracker.md#a-start-on-a-shared-box)",
     )
     unmatched_cost_gates: float | None = Field(
         None,
@@ -106,6 +115,15 @@ class KalmanTrackerParams(StageParams):
         default_factory=consecutive_frames_registration,
         description="the registration of consecutive frames for cmc",
     )
+
+    @model_validator(mode="after")
+    def _split_needs_bystanders(self) -> KalmanTrackerParams:
+        if self.start_split is not None and self.bystanders is None:
+            raise ValueError(
+                "start_split needs bystanders (the new head is a bystander track); expected"
+                " bystanders set, e.g. bystanders: {}"
+            )
+        return self
 
 
 __all__ = ["KalmanTrackerParams"]
