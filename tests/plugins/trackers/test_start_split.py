@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from trackfw.errors import UserError
 from trackfw.records import Detections, VideoContext
 from trackfw.registry import load_registry
 from trackfw_plugins.trackers.bystanders import Bystanders, BystanderSettings
@@ -126,3 +128,8 @@ def test_no_trade_for_a_head_that_walked_in_at_the_border() -> None:
 def test_a_target_given_on_a_head_cut_by_the_border_never_trades() -> None:
     assert _split_beside_the_border(20.0).open[0]
     assert not _split_beside_the_border(50.0).open[0]  # its box's side reaches the border
+
+
+def test_the_check_needs_bystander_tracks() -> None:
+    with pytest.raises(UserError, match="start_split needs bystanders"):
+        load_registry().build_stage("tracker", {"type": "kalman", "params": {"start_split": {}}})
