@@ -15,7 +15,7 @@ def register(app: typer.Typer) -> None:
 
 def eval_command(
     dataset: Annotated[
-        Path, typer.Option("--dataset", help="Dataset folder (one sub-folder per video).")
+        Path, typer.Option("--dataset", "-d", help="Dataset folder (one sub-folder per video).")
     ],
     runs: Annotated[
         Path, typer.Option("--runs", help="Runs folder (one sub-folder per video name).")

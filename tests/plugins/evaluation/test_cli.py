@@ -52,9 +52,8 @@ def test_eval_defaults_to_the_runs_folder_and_raises_user_errors(
     make_video(tmp_path / "data", "a", truth, n_frames=5)
     make_run(tmp_path / "runs", "a", truth, n_frames=5)
     runner = CliRunner()
-    ok = runner.invoke(
-        _app(), ["eval", "--dataset", str(tmp_path / "data"), "--runs", str(tmp_path / "runs")]
-    )
+    # -d as for trackfw bench: one spelling of the dataset option across the commands.
+    ok = runner.invoke(_app(), ["eval", "-d", str(tmp_path / "data"), "--runs", str(tmp_path / "runs")])
     assert ok.exit_code == 0, ok.output
     assert (tmp_path / "runs" / "eval.csv").is_file()
     bad = runner.invoke(
