@@ -294,8 +294,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         """Trade places with the bystander track whose path leads back to a target's given
         point (:mod:`.start_split`); ``targets`` took detection rows ``taken`` this frame."""
         split, bystanders = self.start_split, self.bystanders
-        if split is None or bystanders is None:
-            return
+        if split is None or bystanders is None or not split.open.any():
+            return  # every target traded, or the window is over
         split.first_step(t, targets, detections.points[taken], sides[taken])
         tracked = np.flatnonzero(self.life.status == TRACKED)
         trades = split.due(
