@@ -514,6 +514,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             self.frame_motion.remember(self.image, None if detections is None else detections.boxes)
         if self.bystanders is not None:
             self.bystanders.clear()
+        if self.start_split is not None:
+            self.start_split.close()
         active = self.life.active()
         detection_rows = detection_rows_of(matched, detections)
         sides = matched_sides(detection_rows, detections)

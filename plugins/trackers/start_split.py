@@ -104,6 +104,7 @@ class StartSplit:
         first_error: ``(K,)`` distance from each target's given point to the detection it took
             on its first step (infinite until then, or when it took none).
         open: ``(K,)`` whether each target may still trade places.
+        stepped: whether the tracker's first step after the start was seen.
     """
 
     settings: StartSplitSettings
@@ -114,6 +115,12 @@ class StartSplit:
     follow: int
     first_error: FloatArray = field(default_factory=lambda: np.zeros(0))
     open: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    stepped: bool = False
+
+    def close(self) -> None:
+        """No target trades any more (an interval: the paths no longer lead back to the
+        start frame's camera pose)."""
+        self.open[:] = False
 
     @classmethod
     def begin(
@@ -141,10 +148,12 @@ class StartSplit:
     def first_step(
         self, t: int, targets: IntArray, points: FloatArray, sides: FloatArray
     ) -> None:
-        """On the first step after the start, ``targets`` took detections at ``(M, 2)`` points
-        of ``(M,)`` box sides; those given within that side of the border never trade."""
-        if t != self.start + 1:
+        """On the tracker's first step after the start (frame ``t``, whatever frames were
+        info-less before it), ``targets`` took detections at ``(M, 2)`` points of ``(M,)`` box
+        sides; those given within that side of the border never trade."""
+        if self.stepped:
             return
+        self.stepped = True
         self.first_error[targets] = np.hypot(*(points - self.given[targets]).T)
         cut, _ = near_edge(self.given[targets], *self.size, np.nan_to_num(sides, nan=0.0))
         self.open[targets[cut]] = False
@@ -171,7 +180,7 @@ class StartSplit:
         since = t - self.start
         if since > self.within or not self.open.any():
             if since > self.within:
-                self.open[:] = False
+                self.close()
             return []
         rows = np.flatnonzero(
             (tracks.age >= self.follow)

@@ -133,3 +133,31 @@ def test_a_target_given_on_a_head_cut_by_the_border_never_trades() -> None:
 def test_the_check_needs_bystander_tracks() -> None:
     with pytest.raises(UserError, match="start_split needs bystanders"):
         load_registry().build_stage("tracker", {"type": "kalman", "params": {"start_split": {}}})
+
+
+def test_no_trade_after_an_interval() -> None:
+    params = {"bystanders": {}, "start_gate_px_at_1080": 100.0, "start_split": {}}
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([3]), STANDER[None, :])
+    tracker.step(1, _passing(1))
+    # A look-away on frames 2-3: at b the camera pose has changed, so no new head's path leads
+    # back to the start frame's given point any more.
+    at_b = _passing(4)
+    tracker.reinitialise(4, at_b.points[:1], np.array([0]), at_b)
+    withdrawn = []
+    for t in range(5, 12):
+        tracker.step(t, _passing(t))
+        withdrawn += tracker.withdrawn()
+    assert withdrawn == []
+
+
+def test_the_first_step_may_come_after_info_less_frames() -> None:
+    split = _split_beside_the_border(20.0)  # first step on frame 1
+    assert split.first_error.tolist() == [40.0]
+    late = StartSplit.begin(
+        StartSplitSettings(), FPS, (320, 240), 0, np.array([[45.0, 50.0]])
+    )
+    late.first_step(6, np.array([0]), np.array([[55.0, 50.0]]), np.array([20.0]))
+    late.first_step(7, np.array([0]), np.array([[95.0, 50.0]]), np.array([20.0]))
+    assert late.first_error.tolist() == [10.0]  # the first step's, not a later one's
