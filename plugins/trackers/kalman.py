@@ -512,10 +512,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         matched = np.asarray(matched_detection, dtype=np.int64).copy()
         if self.frame_motion is not None:
             self.frame_motion.remember(self.image, None if detections is None else detections.boxes)
-        if self.bystanders is not None:
-            self.bystanders.clear()
-        if self.start_split is not None:
-            self.start_split.close()
+        self._end_segment_state()
         active = self.life.active()
         detection_rows = detection_rows_of(matched, detections)
         sides = matched_sides(detection_rows, detections)
@@ -569,6 +566,14 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
                 self.memory.descriptors,
                 self.memory.described_at,
             )
+
+    def _end_segment_state(self) -> None:
+        """At b the bystander tracks and the start split end: they belong to the camera pose
+        before the interval."""
+        if self.bystanders is not None:
+            self.bystanders.clear()
+        if self.start_split is not None:
+            self.start_split.close()
 
     def positions(self) -> FloatArray:
         return self.bank.means[:, :2].copy()
