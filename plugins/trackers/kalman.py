@@ -126,11 +126,10 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
                 positions,
             )
         )
-        self.split_withdrawals: list[tuple[int, int]] = []
 
     def withdrawn(self) -> list[tuple[int, int]]:
         walks = [] if self.walk_check is None else self.walk_check.take_withdrawn()
-        splits, self.split_withdrawals = self.split_withdrawals, []
+        splits = [] if self.start_split is None else self.start_split.take_withdrawn()
         return walks + splits
 
     def _snapshot(self, t: int, detections: Detections | None) -> Snapshot:
@@ -304,14 +303,13 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         for row, track in trades:
             column = int(bystanders.claimed[track])
             mean, covariance = bystanders.take_over(
-                track, self.bank.means[row].copy(), self.bank.covariances[row].copy()
+                track, self.bank.means[row], self.bank.covariances[row]
             )
             self.bank.means[row], self.bank.covariances[row] = mean, covariance
             self.matched[row] = detections.index[column]
             self.life.supported(t, np.array([row]), detections.points[[column]], sides[[column]])
             # Its look and size so far were the passer-by's.
             self.memory.forget(row)
-            self.split_withdrawals.append((row, split.start + 1))
 
     def _shared_at_start(
         self, active: IntArray, detections: Detections

@@ -105,6 +105,8 @@ class StartSplit:
             on its first step (infinite until then, or when it took none).
         open: ``(K,)`` whether each target may still trade places.
         stepped: whether the tracker's first step after the start was seen.
+        withdrawn: ``(target row, first frame)`` withdrawals of the trades since the last
+            :meth:`take_withdrawn`.
     """
 
     settings: StartSplitSettings
@@ -116,6 +118,7 @@ class StartSplit:
     first_error: FloatArray = field(default_factory=lambda: np.zeros(0))
     open: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     stepped: bool = False
+    withdrawn: list[tuple[int, int]] = field(default_factory=list)
 
     def close(self) -> None:
         """No target trades any more (an interval: the paths no longer lead back to the
@@ -167,7 +170,8 @@ class StartSplit:
         points: FloatArray,
         sides: FloatArray,
     ) -> list[tuple[int, int]]:
-        """``(target row, bystander track row)`` pairs that trade places on frame ``t``.
+        """``(target row, bystander track row)`` pairs that trade places on frame ``t``; each
+        traded target's reports from the frame after the start on are withdrawn.
 
         Args:
             t: the frame.
@@ -178,25 +182,24 @@ class StartSplit:
             sides: ``(N,)`` their box sides.
         """
         since = t - self.start
-        if since > self.within or not self.open.any():
-            if since > self.within:
-                self.close()
+        if since > self.within:
+            self.close()
+        if not self.open.any():
             return []
+        # Seen on every frame since its birth (so on this one too), born after the start.
         rows = np.flatnonzero(
-            (tracks.age >= self.follow)
-            & (tracks.hits == tracks.age + 1)
-            & (tracks.claimed >= 0)
-            & (tracks.age < since)
+            (tracks.age >= self.follow) & (tracks.hits == tracks.age + 1) & (tracks.age < since)
         )
         mine = self.open[targets]
         targets, positions = targets[mine], positions[mine]
         if len(rows) == 0 or len(targets) == 0:
             return []
-        now = points[tracks.claimed[rows]]
-        walked_in, _ = near_edge(tracks.first[rows], *self.size, sides[tracks.claimed[rows]])
-        rows, now = rows[~walked_in], now[~walked_in]
+        columns = tracks.claimed[rows]
+        walked_in, _ = near_edge(tracks.first[rows], *self.size, sides[columns])
+        rows, columns = rows[~walked_in], columns[~walked_in]
         if len(rows) == 0:
             return []
+        now = points[columns]
         start_points = traced_back(
             tracks.first[rows], now, tracks.age[rows], since - tracks.age[rows]
         )
@@ -205,7 +208,7 @@ class StartSplit:
         here = distance_matrix(self.given[targets], now)
         near = (
             (off < self.settings.back_ratio * self.first_error[targets][:, None])
-            & (off < self.settings.back_sides * sides[tracks.claimed[rows]][None, :])
+            & (off < self.settings.back_sides * sides[columns][None, :])
             & (here < drifted[:, None])
         )
         trades: list[tuple[int, int]] = []
@@ -218,4 +221,10 @@ class StartSplit:
             taken.add(free[0])
             trades.append((int(targets[m]), int(rows[free[0]])))
             self.open[targets[m]] = False
+            self.withdrawn.append((int(targets[m]), self.start + 1))
         return trades
+
+    def take_withdrawn(self) -> list[tuple[int, int]]:
+        """The withdrawals recorded since the last call: (target row, first frame)."""
+        withdrawn, self.withdrawn = self.withdrawn, []
+        return withdrawn
