@@ -31,9 +31,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from pydantic import ConfigDict, Field
 
-from trackfw.arrays import FloatArray, IntArray
+from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw.stages import FiniteModel
-from trackfw_plugins.maths.assignment import distance_matrix
+from trackfw_plugins.maths.assignment import distance_matrix, greedy_nearest
 from trackfw_plugins.trackers.border_return import near_edge
 from trackfw_plugins.trackers.bystanders import Bystanders
 
@@ -116,7 +116,7 @@ class StartSplit:
     within: int
     follow: int
     first_error: FloatArray = field(default_factory=lambda: np.zeros(0))
-    open: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    open: BoolArray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     stepped: bool = False
     withdrawn: list[tuple[int, int]] = field(default_factory=list)
 
@@ -148,9 +148,7 @@ class StartSplit:
             open=np.ones(count, dtype=bool),
         )
 
-    def first_step(
-        self, t: int, targets: IntArray, points: FloatArray, sides: FloatArray
-    ) -> None:
+    def first_step(self, t: int, targets: IntArray, points: FloatArray, sides: FloatArray) -> None:
         """On the tracker's first step after the start (frame ``t``, whatever frames were
         info-less before it), ``targets`` took detections at ``(M, 2)`` points of ``(M,)`` box
         sides; those given within that side of the border never trade."""
@@ -211,17 +209,14 @@ class StartSplit:
             & (off < self.settings.back_sides * sides[columns][None, :])
             & (here < drifted[:, None])
         )
-        trades: list[tuple[int, int]] = []
-        taken: set[int] = set()
-        for m in np.argsort(np.where(near, off, np.inf).min(axis=1)):
-            near_rows = np.flatnonzero(near[m])
-            free = [int(c) for c in near_rows[np.argsort(off[m, near_rows])] if int(c) not in taken]
-            if not free:
-                continue
-            taken.add(free[0])
-            trades.append((int(targets[m]), int(rows[free[0]])))
-            self.open[targets[m]] = False
-            self.withdrawn.append((int(targets[m]), self.start + 1))
+        if not near.any():
+            return []
+        # Nearest path first, one track per target; only the near pairs are possible.
+        chosen = greedy_nearest(np.where(near, off, np.inf), gate=float(off[near].max()))
+        traded = np.flatnonzero(chosen >= 0)
+        self.open[targets[traded]] = False
+        trades = [(int(targets[m]), int(rows[chosen[m]])) for m in traded]
+        self.withdrawn.extend((row, self.start + 1) for row, _ in trades)
         return trades
 
     def take_withdrawn(self) -> list[tuple[int, int]]:
