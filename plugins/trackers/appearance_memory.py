@@ -92,6 +92,13 @@ class AppearanceSettings(FiniteModel):
         ge=0.0,
         description="how much nearer in look that detection must be than the next one",
     )
+    neighbour_margin: float | None = Field(
+        None,
+        ge=0.0,
+        description="that detection is also refused unless it looks nearer, by at least this"
+        " margin, to the target than to every person seen apart from the target on the frame"
+        " it was lost (two heads seen at once are two people); None: never checked",
+    )
     refresh_s: float = Field(
         1.0, gt=0.0, description="seconds between two descriptors of a tracked target"
     )
@@ -219,11 +226,7 @@ class AppearanceMemory:
         old = self.descriptors[target]
         limit = self.settings.swap_max_distance
         fresh = descriptor[None, :]
-        if (
-            old is not None
-            and limit is not None
-            and self._distance_matrix(old, fresh).min() > limit
-        ):
+        if old is not None and limit is not None and self.distance_matrix(old, fresh).min() > limit:
             second = bool(self.unlike_at[target] >= 0)
             self.unlike_at[target] = -1 if second else t
             return second
@@ -245,16 +248,23 @@ class AppearanceMemory:
         NaN where nothing can be said: no descriptor configured, no image, or a target never
         described. Only the ``columns`` detections are described.
         """
+        return self.described_distances(image, targets, detections, columns)[0]
+
+    def described_distances(
+        self, image: UInt8Array | None, targets: IntArray, detections: Detections, columns: IntArray
+    ) -> tuple[FloatArray, FloatArray | None]:
+        """:meth:`distances`, and the ``(N, D)`` descriptors of the ``columns`` detections (None
+        where :meth:`distances` described nothing)."""
         distance = np.full((len(targets), len(columns)), np.nan)
         known = np.array([self.descriptors[int(k)] is not None for k in targets], dtype=bool)
         if not self.active or image is None or not known.any() or len(columns) == 0:
-            return distance
+            return distance, None
         described = self.describe(image, detections, columns)
         query = np.concatenate([self.descriptors[int(k)] for k in targets[known]])
-        distance[known] = self._distance_matrix(query, described)
-        return distance
+        distance[known] = self.distance_matrix(query, described)
+        return distance, described
 
-    def _distance_matrix(self, first: FloatArray, second: FloatArray) -> FloatArray:
+    def distance_matrix(self, first: FloatArray, second: FloatArray) -> FloatArray:
         """``(M, N)`` distances of ``(M, D)`` to ``(N, D)`` descriptors in this descriptor's metric."""
         if self.embedder is not None:
             return cosine_distance_matrix(first, second)
@@ -299,10 +309,16 @@ class AppearanceMemory:
         self, image: UInt8Array | None, targets: IntArray, detections: Detections, columns: IntArray
     ) -> FloatArray:
         """:meth:`distances`, with NaN also for a ``patch`` cut by the image border (says little)."""
-        distance = self.distances(image, targets, detections, columns)
+        return self.described_looks(image, targets, detections, columns)[0]
+
+    def described_looks(
+        self, image: UInt8Array | None, targets: IntArray, detections: Detections, columns: IntArray
+    ) -> tuple[FloatArray, FloatArray | None]:
+        """:meth:`looks`, and the descriptors of :meth:`described_distances`."""
+        distance, described = self.described_distances(image, targets, detections, columns)
         if self.embedder is None and image is not None and len(columns):
             distance[:, self._cut(image, detections.points[columns])] = np.nan
-        return distance
+        return distance, described
 
     @staticmethod
     def _cut(image: UInt8Array, points: FloatArray) -> BoolArray:

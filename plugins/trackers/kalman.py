@@ -43,7 +43,7 @@ from trackfw_plugins.trackers.appearance_memory import AppearanceMemory
 from trackfw_plugins.trackers.bystanders import Bystanders
 from trackfw_plugins.trackers.camera_motion import FrameMotion
 from trackfw_plugins.trackers.kalman_params import KalmanTrackerParams
-from trackfw_plugins.trackers.lifecycle import Lifecycle
+from trackfw_plugins.trackers.lifecycle import ACTIVE, Lifecycle
 from trackfw_plugins.trackers.look_at_b import (
     box_sides,
     check_looks_at_b,
@@ -52,6 +52,7 @@ from trackfw_plugins.trackers.look_at_b import (
     refuse_by_size,
 )
 from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio, stands_out
+from trackfw_plugins.trackers.neighbour_looks import NEIGHBOUR_APART_SIDES, NeighbourLooks
 from trackfw_plugins.trackers.start_split import StartSplit
 from trackfw_plugins.trackers.walk_check import Snapshot, WalkCheck
 
@@ -100,6 +101,11 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.life = Lifecycle.start(params.lifecycle, self.video, t, positions)
         self.memory = AppearanceMemory(
             params.appearance, len(positions), self.video.height, self.life.fps
+        )
+        self.neighbours = (
+            None
+            if params.appearance.neighbour_margin is None
+            else NeighbourLooks.start(len(positions))
         )
         self.bystanders = (
             None
@@ -286,6 +292,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             )
             self._split_start(t, detections, targets, taken, sides)
         self._check_walks(t, detections)
+        self._remember_neighbours(detections, np.concatenate([taken, columns, shared]))
 
     def _split_start(
         self, t: int, detections: Detections, targets: IntArray, taken: IntArray, sides: FloatArray
@@ -466,13 +473,55 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         free = np.setdiff1d(free, taken)
         if len(free) == 0:
             return none, none
-        look = self.memory.looks(self.image, rows, detections, np.arange(len(detections)))
+        look, described = self.memory.described_looks(
+            self.image, rows, detections, np.arange(len(detections))
+        )
         clear = stands_out(look, settings.anywhere_margin)
         cost = np.where(clear, look, np.inf)[:, free]
         cost[self._seen_apart(rows, free, len(detections))] = np.inf
+        if self.neighbours is not None and described is not None:
+            margin = settings.neighbour_margin or 0.0
+            beside = self.neighbours.distances(rows, described[free], self.memory.distance_matrix)
+            cost[~(cost + margin <= beside)] = np.inf
         columns = hungarian(cost, settings.anywhere_max_distance)
         hit = columns >= 0
         return rows[hit], free[columns[hit]]
+
+    def _remember_neighbours(self, detections: Detections, held: IntArray) -> None:
+        """At the end of a frame, describe the people seen apart from each target lost on it
+        after being tracked: the detections no target holds (``held``: rows of ``detections``)
+        farther than :data:`.NEIGHBOUR_APART_SIDES` head sides (at least the bystanders'
+        ``apart_gates`` association gates) from both its predicted place and its last
+        detection, unless the search by look would take them for it (within
+        ``anywhere_max_distance``); see :mod:`.neighbour_looks`."""
+        neighbours, bystanders, life = self.neighbours, self.bystanders, self.life
+        if neighbours is None:
+            return
+        tracked = life.status == TRACKED
+        lost = np.flatnonzero(neighbours.tracked & ~tracked & ~np.isin(life.status, ACTIVE))
+        neighbours.end_frame(tracked)
+        limit = self.params.appearance.anywhere_max_distance
+        if len(lost) == 0 or limit is None or self.image is None or not self.memory.active:
+            return
+        apart_gates = 2.0 if bystanders is None else bystanders.settings.apart_gates
+        gates = np.inf if self.gate is None else apart_gates * self.gate
+        sides = NEIGHBOUR_APART_SIDES * np.nan_to_num(life.size[lost], nan=0.0)
+        reach = np.maximum(gates, sides)[:, None]
+        free = np.setdiff1d(np.arange(len(detections)), held)
+        points = detections.points[free]
+        apart = (distance_matrix(self.bank.positions[lost], points) > reach) & (
+            distance_matrix(life.anchor[lost], points) > reach
+        )
+        wanted = np.flatnonzero(apart.any(axis=0))
+        look, described = self.memory.described_distances(
+            self.image, lost, detections, free[wanted]
+        )
+        if described is None:
+            return
+        for m, row in enumerate(lost):
+            # NaN (the target never described) records nothing: nothing to compare with.
+            beside = apart[m, wanted] & (look[m] > limit)
+            neighbours.remember(int(row), described[beside])
 
     def _seen_apart(self, rows: IntArray, columns: IntArray, count: int) -> BoolArray:
         """``(M, N)``: whether detection ``columns[n]`` (of ``count``) is held by a bystander
@@ -564,6 +613,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
                 self.memory.descriptors,
                 self.memory.described_at,
             )
+        if self.neighbours is not None:
+            self.neighbours.end_frame(self.life.status == TRACKED)
 
     def _end_segment_state(self) -> None:
         """At b the bystander tracks and the start split end: they belong to the camera pose

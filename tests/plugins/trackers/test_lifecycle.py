@@ -667,6 +667,53 @@ def test_search_anywhere_with_a_target_never_described() -> None:
     assert np.allclose(tracker.positions()[0], red, atol=1.0)
 
 
+# Patch-descriptor distances to RED: DARK_RED 0.147 (beyond the 0.12 limit below), its lit
+# version LIT_RED 0.089 (0.059 from DARK_RED), DEEP_RED 0.086 (0.078 from DARK_RED).
+DARK_RED, LIT_RED, DEEP_RED = (0, 40, 150), (0, 30, 190), (0, 0, 170)
+
+
+def _lost_red_beside(neighbour_margin: float | None) -> Any:
+    """Red lost while a dark-red bystander stands far off (and a deep-red one, as like red as
+    the search's 0.12 limit allows); the search anywhere on at 0.12."""
+    tracker = _patch_tracker(anywhere_max_distance=0.12, neighbour_margin=neighbour_margin)
+    colours = (RED, GREEN, BLUE)
+    tracker.see(_painted([(x, y, c) for (x, y), c in zip(GROUP, colours, strict=True)]))
+    tracker.step(1, _seen(GROUP))
+    dark, deep = np.array([1000.0, 450.0]), np.array([200.0, 600.0])
+    for t in range(2, 27):
+        spots = [(*GROUP[1], GREEN), (*GROUP[2], BLUE), (*dark, DARK_RED), (*deep, DEEP_RED)]
+        tracker.see(_painted(spots))
+        tracker.step(t, _seen(np.vstack([GROUP[1:], dark, deep])))
+    assert tracker.statuses() == ["lost", "tracked", "tracked"]
+    return tracker
+
+
+@pytest.mark.parametrize("neighbour_margin", [None, 0.0])
+def test_a_lost_target_is_not_found_on_a_person_seen_beside_it(
+    neighbour_margin: float | None,
+) -> None:
+    # The dark-red bystander, lit now, comes back alone: it stands out as the most red-like head
+    # (0.089), but it looks more like the person seen apart from red when red was lost (0.059).
+    tracker = _lost_red_beside(neighbour_margin)
+    lit = np.array([1000.0, 600.0])
+    tracker.see(_painted([(*GROUP[1], GREEN), (*GROUP[2], BLUE), (*lit, LIT_RED)]))
+    tracker.step(30, _seen(np.vstack([GROUP[1:], lit])))
+    assert tracker.statuses()[0] == ("tracked" if neighbour_margin is None else "lost")
+
+
+def test_a_head_the_search_would_take_for_the_target_is_not_kept_as_a_neighbour() -> None:
+    # Deep red lies within the search's limit of red (it might be red, moved off its expected
+    # place): only dark red is kept; red itself coming back is found.
+    tracker = _lost_red_beside(0.0)
+    assert tracker.neighbours.descriptors[0].shape[0] == 1
+    red = np.array([1000.0, 600.0])
+    tracker.see(_painted([(*GROUP[1], GREEN), (*GROUP[2], BLUE), (*red, RED)]))
+    tracker.step(30, _seen(np.vstack([GROUP[1:], red])))
+    assert tracker.statuses()[0] == "tracked"
+    tracker.step(31, _seen(np.vstack([GROUP[1:], red])))
+    assert tracker.neighbours.descriptors[0] is None  # followed again: forgotten
+
+
 def _lost_red_before_a(rematch_inactive: bool) -> Any:
     """Red, green and blue seen with the patch descriptor; red then lost before an interval."""
     tracker = _patch_tracker(gap_max_distance=0.3, gap_rematch_inactive=rematch_inactive)
