@@ -97,7 +97,8 @@ class AppearanceSettings(FiniteModel):
         ge=0.0,
         description="that detection is also refused unless it looks nearer, by at least this"
         " margin, to the target than to every person seen apart from the target on the frame"
-        " it was lost (two heads seen at once are two people); None: never checked",
+        " it was lost (two heads seen at once are two people), and so is a match at b against"
+        " the people seen apart from it on frame a; None: never checked",
     )
     refresh_s: float = Field(
         1.0, gt=0.0, description="seconds between two descriptors of a tracked target"

@@ -102,6 +102,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.memory = AppearanceMemory(
             params.appearance, len(positions), self.video.height, self.life.fps
         )
+        self._last_frame: tuple[UInt8Array | None, Detections, IntArray] | None = None
         self.neighbours = (
             None
             if params.appearance.neighbour_margin is None
@@ -489,39 +490,134 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
 
     def _remember_neighbours(self, detections: Detections, held: IntArray) -> None:
         """At the end of a frame, describe the people seen apart from each target lost on it
-        after being tracked: the detections no target holds (``held``: rows of ``detections``)
-        farther than :data:`.NEIGHBOUR_APART_SIDES` head sides (at least the bystanders'
-        ``apart_gates`` association gates) from both its predicted place and its last
-        detection, unless the search by look would take them for it (within
-        ``anywhere_max_distance``); see :mod:`.neighbour_looks`."""
-        neighbours, bystanders, life = self.neighbours, self.bystanders, self.life
+        after being tracked (:meth:`_describe_apart`); keep the frame for b (:meth:`_neighbours_at_a`)."""
+        neighbours, life = self.neighbours, self.life
         if neighbours is None:
             return
         tracked = life.status == TRACKED
         lost = np.flatnonzero(neighbours.tracked & ~tracked & ~np.isin(life.status, ACTIVE))
         neighbours.end_frame(tracked)
+        self._last_frame = (self.image, detections, held)
+        self._describe_apart(self.image, detections, held, lost)
+
+    def _describe_apart(
+        self, image: UInt8Array | None, detections: Detections, held: IntArray, rows: IntArray
+    ) -> None:
+        """Keep, for each target of ``rows``, the looks of the detections no target holds
+        (``held``: rows of ``detections``) farther than :data:`.NEIGHBOUR_APART_SIDES` head sides
+        (at least the bystanders' ``apart_gates`` association gates) from both its filter's
+        place and its last detection, unless the search by look would take them for it (within
+        ``anywhere_max_distance``); see :mod:`.neighbour_looks`."""
+        neighbours, bystanders, life = self.neighbours, self.bystanders, self.life
         limit = self.params.appearance.anywhere_max_distance
-        if len(lost) == 0 or limit is None or self.image is None or not self.memory.active:
+        if neighbours is None or len(rows) == 0 or limit is None or image is None:
+            return
+        if not self.memory.active:
             return
         apart_gates = 2.0 if bystanders is None else bystanders.settings.apart_gates
         gates = np.inf if self.gate is None else apart_gates * self.gate
-        sides = NEIGHBOUR_APART_SIDES * np.nan_to_num(life.size[lost], nan=0.0)
+        sides = NEIGHBOUR_APART_SIDES * np.nan_to_num(life.size[rows], nan=0.0)
         reach = np.maximum(gates, sides)[:, None]
         free = np.setdiff1d(np.arange(len(detections)), held)
         points = detections.points[free]
-        apart = (distance_matrix(self.bank.positions[lost], points) > reach) & (
-            distance_matrix(life.anchor[lost], points) > reach
+        apart = (distance_matrix(self.bank.positions[rows], points) > reach) & (
+            distance_matrix(life.anchor[rows], points) > reach
         )
         wanted = np.flatnonzero(apart.any(axis=0))
-        look, described = self.memory.described_distances(
-            self.image, lost, detections, free[wanted]
-        )
+        look, described = self.memory.described_distances(image, rows, detections, free[wanted])
         if described is None:
             return
-        for m, row in enumerate(lost):
+        for m, row in enumerate(rows):
             # NaN (the target never described) records nothing: nothing to compare with.
             beside = apart[m, wanted] & (look[m] > limit)
             neighbours.remember(int(row), described[beside])
+
+    def _neighbours_at_a(self, active: IntArray) -> None:
+        """At b: keep the people seen apart from each of the ``active`` targets tracked on frame
+        a (the last frame stepped): two heads seen at once there are two people."""
+        neighbours, last = self.neighbours, self._last_frame
+        self._last_frame = None
+        if neighbours is not None and last is not None:
+            image, before, held = last
+            self._describe_apart(image, before, held, active[neighbours.tracked[active]])
+
+    def _looks_at_b(
+        self,
+        active: IntArray,
+        matched: IntArray,
+        detection_rows: IntArray,
+        positions: FloatArray,
+        detections: Detections | None,
+        refused: IntArray,
+    ) -> tuple[IntArray, IntArray]:
+        """The matches at b checked by look and the refused and lost targets re-matched by look
+        (:func:`.check_looks_at_b`; arrays updated in place), then by the people kept beside
+        each target (:meth:`_refuse_beside`).
+
+        Returns:
+            The refused targets left without a match, and the inactive targets found.
+        """
+        inactive = (
+            self.life.inactive()
+            if self.params.appearance.gap_rematch_inactive
+            else np.zeros(0, dtype=np.int64)
+        )
+        if not self.params.appearance.gap_rematch_out_of_view:
+            inactive = inactive[self.life.status[inactive] != OUT_OF_VIEW]
+        unlike, returned = check_looks_at_b(
+            self.memory,
+            self.life,
+            self.image,
+            self.params.appearance,
+            active,
+            matched,
+            detection_rows,
+            positions,
+            detections,
+            inactive,
+            refused,
+        )
+        # The re-match by look may hand a refused target a neighbour's head again.
+        rows = np.concatenate([active, returned])
+        again = self._refuse_beside(rows, matched, detection_rows, detections)
+        unlike, returned = (
+            np.union1d(unlike, again[np.isin(again, active)]),
+            np.setdiff1d(returned, again),
+        )
+        return unlike, returned
+
+    def _refuse_beside(
+        self,
+        rows: IntArray,
+        matched: IntArray,
+        detection_rows: IntArray,
+        detections: Detections | None,
+        refused: IntArray | None = None,
+    ) -> IntArray:
+        """Drop the matches at b of ``rows`` (``matched``, ``detection_rows``: updated in place)
+        whose detection looks at least as much like one of the people kept beside the target as
+        like the target (:mod:`.neighbour_looks`).
+
+        Returns:
+            Those rows, with ``refused`` (the rows refused already).
+        """
+        before = np.zeros(0, dtype=np.int64) if refused is None else refused
+        if self.neighbours is None or detections is None or len(detections) == 0:
+            return before
+        checked = rows[detection_rows[rows] >= 0]
+        look, described = self.memory.described_looks(
+            self.image, checked, detections, detection_rows[checked]
+        )
+        if described is None:
+            return before
+        beside = np.diagonal(
+            self.neighbours.distances(checked, described, self.memory.distance_matrix)
+        )
+        margin = self.params.appearance.neighbour_margin or 0.0
+        dropped = checked[np.diagonal(look) + margin > beside]
+        matched[dropped] = NO_MATCH
+        detection_rows[dropped] = NO_MATCH
+        return np.union1d(before, dropped)
 
     def _seen_apart(self, rows: IntArray, columns: IntArray, count: int) -> BoolArray:
         """``(M, N)``: whether detection ``columns[n]`` (of ``count``) is held by a bystander
@@ -564,25 +660,10 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         detection_rows = detection_rows_of(matched, detections)
         sides = matched_sides(detection_rows, detections)
         refused = refuse_by_size(self.life, active, matched, detection_rows, sides)
-        inactive = (
-            self.life.inactive()
-            if self.params.appearance.gap_rematch_inactive
-            else np.zeros(0, dtype=np.int64)
-        )
-        if not self.params.appearance.gap_rematch_out_of_view:
-            inactive = inactive[self.life.status[inactive] != OUT_OF_VIEW]
-        unlike, returned = check_looks_at_b(
-            self.memory,
-            self.life,
-            self.image,
-            self.params.appearance,
-            active,
-            matched,
-            detection_rows,
-            positions,
-            detections,
-            inactive,
-            refused,
+        self._neighbours_at_a(active)
+        refused = self._refuse_beside(active, matched, detection_rows, detections, refused)
+        unlike, returned = self._looks_at_b(
+            active, matched, detection_rows, positions, detections, refused
         )
         sides = matched_sides(detection_rows, detections)
         if self.params.reinit_at_b:

@@ -714,6 +714,30 @@ def test_a_head_the_search_would_take_for_the_target_is_not_kept_as_a_neighbour(
     assert tracker.neighbours.descriptors[0] is None  # followed again: forgotten
 
 
+@pytest.mark.parametrize("neighbour_margin", [None, 0.0])
+def test_a_match_at_b_on_a_person_seen_beside_the_target_at_a_is_refused(
+    neighbour_margin: float | None,
+) -> None:
+    # Dark red stood far from red on frame a; at b the gap matcher hands red a lit-red head,
+    # nearer in look to dark red (0.059) than to red (0.089): two heads seen at once on frame a
+    # are two people, so red is lost rather than placed on it.
+    tracker = _patch_tracker(anywhere_max_distance=0.12, neighbour_margin=neighbour_margin)
+    dark = np.array([1000.0, 450.0])
+    spots = [(*GROUP[0], RED), (*GROUP[1], GREEN), (*GROUP[2], BLUE), (*dark, DARK_RED)]
+    for t in (1, 2, 3):
+        tracker.see(_painted(spots))
+        tracker.step(t, _seen(np.vstack([GROUP, dark])))
+    assert tracker.statuses() == ["tracked"] * 3
+    at_b = GROUP + np.array([0.0, 200.0])
+    tracker.see(_painted([(*at_b[0], LIT_RED), (*at_b[1], GREEN), (*at_b[2], BLUE)]))
+    tracker.reinitialise(40, at_b.copy(), np.array([0, 1, 2]), _seen(at_b))
+    assert tracker.statuses() == [
+        "tracked" if neighbour_margin is None else "lost",
+        "tracked",
+        "tracked",
+    ]
+
+
 def _lost_red_before_a(rematch_inactive: bool) -> Any:
     """Red, green and blue seen with the patch descriptor; red then lost before an interval."""
     tracker = _patch_tracker(gap_max_distance=0.3, gap_rematch_inactive=rematch_inactive)
