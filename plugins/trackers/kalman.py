@@ -49,6 +49,7 @@ from trackfw_plugins.trackers.look_at_b import (
     check_looks_at_b,
     detection_rows_of,
     matched_sides,
+    refuse_beside,
     refuse_by_size,
 )
 from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio, stands_out
@@ -489,48 +490,15 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         return rows[hit], free[columns[hit]]
 
     def _remember_neighbours(self, detections: Detections, held: IntArray) -> None:
-        """At the end of a frame, describe the people seen apart from each target lost on it
-        after being tracked (:meth:`_describe_apart`); keep the frame for b (:meth:`_neighbours_at_a`)."""
-        neighbours, life = self.neighbours, self.life
-        if neighbours is None:
+        """At the end of a frame, keep the looks of the people seen apart from each target
+        lost on it after being tracked (:mod:`.neighbour_looks`; ``held``: the rows of
+        ``detections`` the targets hold), and the frame itself for b (:meth:`_neighbours_at_a`)."""
+        if self.neighbours is None:
             return
-        tracked = life.status == TRACKED
-        lost = np.flatnonzero(neighbours.tracked & ~tracked & ~np.isin(life.status, ACTIVE))
-        neighbours.end_frame(tracked)
+        status = self.life.status
+        lost = self.neighbours.end_frame(status == TRACKED, ~np.isin(status, ACTIVE))
         self._last_frame = (self.image, detections, held)
-        self._describe_apart(self.image, detections, held, lost)
-
-    def _describe_apart(
-        self, image: UInt8Array | None, detections: Detections, held: IntArray, rows: IntArray
-    ) -> None:
-        """Keep, for each target of ``rows``, the looks of the detections no target holds
-        (``held``: rows of ``detections``) farther than :data:`.NEIGHBOUR_APART_SIDES` head sides
-        (at least the bystanders' ``apart_gates`` association gates) from both its filter's
-        place and its last detection, unless the search by look would take them for it (within
-        ``anywhere_max_distance``); see :mod:`.neighbour_looks`."""
-        neighbours, bystanders, life = self.neighbours, self.bystanders, self.life
-        limit = self.params.appearance.anywhere_max_distance
-        if neighbours is None or len(rows) == 0 or limit is None or image is None:
-            return
-        if not self.memory.active:
-            return
-        apart_gates = 2.0 if bystanders is None else bystanders.settings.apart_gates
-        gates = np.inf if self.gate is None else apart_gates * self.gate
-        sides = NEIGHBOUR_APART_SIDES * np.nan_to_num(life.size[rows], nan=0.0)
-        reach = np.maximum(gates, sides)[:, None]
-        free = np.setdiff1d(np.arange(len(detections)), held)
-        points = detections.points[free]
-        apart = (distance_matrix(self.bank.positions[rows], points) > reach) & (
-            distance_matrix(life.anchor[rows], points) > reach
-        )
-        wanted = np.flatnonzero(apart.any(axis=0))
-        look, described = self.memory.described_distances(image, rows, detections, free[wanted])
-        if described is None:
-            return
-        for m, row in enumerate(rows):
-            # NaN (the target never described) records nothing: nothing to compare with.
-            beside = apart[m, wanted] & (look[m] > limit)
-            neighbours.remember(int(row), described[beside])
+        self._remember_apart(self.image, detections, held, lost)
 
     def _neighbours_at_a(self, active: IntArray) -> None:
         """At b: keep the people seen apart from each of the ``active`` targets tracked on frame
@@ -539,7 +507,25 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self._last_frame = None
         if neighbours is not None and last is not None:
             image, before, held = last
-            self._describe_apart(image, before, held, active[neighbours.tracked[active]])
+            self._remember_apart(image, before, held, active[neighbours.tracked[active]])
+
+    def _remember_apart(
+        self, image: UInt8Array | None, detections: Detections, held: IntArray, rows: IntArray
+    ) -> None:
+        """:meth:`.NeighbourLooks.remember_apart` for targets ``rows``: apart is farther than
+        :data:`.NEIGHBOUR_APART_SIDES` head sides (at least the bystanders' ``apart_gates``
+        association gates) from both its filter's place and its last detection; the search's
+        own limit (``anywhere_max_distance``) keeps a look that may be the target's out."""
+        neighbours, bystanders, life = self.neighbours, self.bystanders, self.life
+        limit = self.params.appearance.anywhere_max_distance
+        if neighbours is None or limit is None:
+            return
+        apart_gates = 2.0 if bystanders is None else bystanders.settings.apart_gates
+        gates = np.inf if self.gate is None else apart_gates * self.gate
+        reach = np.maximum(gates, NEIGHBOUR_APART_SIDES * np.nan_to_num(life.size[rows], nan=0.0))
+        free = np.setdiff1d(np.arange(len(detections)), held)
+        places = (self.bank.positions[rows], life.anchor[rows])
+        neighbours.remember_apart(self.memory, image, detections, free, rows, places, reach, limit)
 
     def _looks_at_b(
         self,
@@ -564,6 +550,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         )
         if not self.params.appearance.gap_rematch_out_of_view:
             inactive = inactive[self.life.status[inactive] != OUT_OF_VIEW]
+        matches_before = detection_rows.copy()
         unlike, returned = check_looks_at_b(
             self.memory,
             self.life,
@@ -578,8 +565,9 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             refused,
         )
         # The re-match by look may hand a refused target a neighbour's head again.
-        rows = np.concatenate([active, returned])
-        again = self._refuse_beside(rows, matched, detection_rows, detections)
+        again = self._refuse_beside(
+            np.flatnonzero(detection_rows != matches_before), matched, detection_rows, detections
+        )
         unlike, returned = (
             np.union1d(unlike, again[np.isin(again, active)]),
             np.setdiff1d(returned, again),
@@ -592,32 +580,21 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         matched: IntArray,
         detection_rows: IntArray,
         detections: Detections | None,
-        refused: IntArray | None = None,
     ) -> IntArray:
-        """Drop the matches at b of ``rows`` (``matched``, ``detection_rows``: updated in place)
-        whose detection looks at least as much like one of the people kept beside the target as
-        like the target (:mod:`.neighbour_looks`).
-
-        Returns:
-            Those rows, with ``refused`` (the rows refused already).
-        """
-        before = np.zeros(0, dtype=np.int64) if refused is None else refused
-        if self.neighbours is None or detections is None or len(detections) == 0:
-            return before
-        checked = rows[detection_rows[rows] >= 0]
-        look, described = self.memory.described_looks(
-            self.image, checked, detections, detection_rows[checked]
-        )
-        if described is None:
-            return before
-        beside = np.diagonal(
-            self.neighbours.distances(checked, described, self.memory.distance_matrix)
-        )
+        """:func:`.refuse_beside` for ``rows`` (none without the neighbour looks)."""
+        if self.neighbours is None:
+            return np.zeros(0, dtype=np.int64)
         margin = self.params.appearance.neighbour_margin or 0.0
-        dropped = checked[np.diagonal(look) + margin > beside]
-        matched[dropped] = NO_MATCH
-        detection_rows[dropped] = NO_MATCH
-        return np.union1d(before, dropped)
+        return refuse_beside(
+            self.memory,
+            self.neighbours,
+            self.image,
+            margin,
+            rows,
+            matched,
+            detection_rows,
+            detections,
+        )
 
     def _seen_apart(self, rows: IntArray, columns: IntArray, count: int) -> BoolArray:
         """``(M, N)``: whether detection ``columns[n]`` (of ``count``) is held by a bystander
@@ -661,7 +638,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         sides = matched_sides(detection_rows, detections)
         refused = refuse_by_size(self.life, active, matched, detection_rows, sides)
         self._neighbours_at_a(active)
-        refused = self._refuse_beside(active, matched, detection_rows, detections, refused)
+        beside = self._refuse_beside(active, matched, detection_rows, detections)
+        refused = np.union1d(refused, beside)
         unlike, returned = self._looks_at_b(
             active, matched, detection_rows, positions, detections, refused
         )
@@ -695,7 +673,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
                 self.memory.described_at,
             )
         if self.neighbours is not None:
-            self.neighbours.end_frame(self.life.status == TRACKED)
+            status = self.life.status
+            self.neighbours.end_frame(status == TRACKED, ~np.isin(status, ACTIVE))
 
     def _end_segment_state(self) -> None:
         """At b the bystander tracks and the start split end: they belong to the camera pose

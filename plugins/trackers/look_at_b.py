@@ -18,6 +18,7 @@ from trackfw_plugins.maths.assignment import hungarian
 from trackfw_plugins.trackers.appearance_memory import AppearanceMemory, AppearanceSettings
 from trackfw_plugins.trackers.lifecycle import Lifecycle
 from trackfw_plugins.trackers.look_rules import nearer_by_ratio
+from trackfw_plugins.trackers.neighbour_looks import NeighbourLooks
 
 
 def box_sides(detections: Detections) -> FloatArray:
@@ -154,3 +155,34 @@ def check_looks_at_b(
     matched[found] = detections.index[rows]
     positions[found] = detections.points[rows]
     return unlike[~hit[: len(unlike)]], inactive[hit[len(unlike) :]]
+
+
+def refuse_beside(
+    memory: AppearanceMemory,
+    neighbours: NeighbourLooks,
+    image: UInt8Array | None,
+    margin: float,
+    rows: IntArray,
+    matched: IntArray,
+    detection_rows: IntArray,
+    detections: Detections | None,
+) -> IntArray:
+    """Drop the matches at b of ``rows`` whose detection looks at least as much like one of the
+    people kept beside the target as like the target (within ``margin``;
+    docs/algorithms/segment-tracker.md#people-seen-beside-a-lost-target).
+
+    ``matched`` and ``detection_rows`` (``(K,)``, as in :func:`check_looks_at_b`) are updated in
+    place. Returns the rows dropped.
+    """
+    none = np.zeros(0, dtype=np.int64)
+    if detections is None or len(detections) == 0:
+        return none
+    checked = rows[detection_rows[rows] >= 0]
+    look, described = memory.described_looks(image, checked, detections, detection_rows[checked])
+    if described is None:
+        return none
+    beside = np.diagonal(neighbours.distances(checked, described, memory.distance_matrix))
+    dropped = checked[np.diagonal(look) + margin > beside]
+    matched[dropped] = NO_MATCH
+    detection_rows[dropped] = NO_MATCH
+    return dropped

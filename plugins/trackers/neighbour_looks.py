@@ -18,7 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trackfw.arrays import BoolArray, FloatArray, IntArray
+from trackfw.arrays import BoolArray, FloatArray, IntArray, UInt8Array
+from trackfw.records import Detections
+from trackfw_plugins.maths.assignment import distance_matrix
+from trackfw_plugins.trackers.appearance_memory import AppearanceMemory
 
 #: Descriptors kept per target: a loss in a crowd sees a dozen heads at most; later losses add.
 NEIGHBOURS_KEPT = 32
@@ -52,16 +55,6 @@ class NeighbourLooks:
         """Nothing kept for ``count`` targets, all tracked (given on the first frame)."""
         return cls([None] * count, np.ones(count, dtype=bool))
 
-    def just_lost(self, rows: IntArray) -> IntArray:
-        """Those of the inactive ``rows`` that were tracked on the previous frame.
-
-        >>> looks = NeighbourLooks.start(3)
-        >>> looks.end_frame(np.array([True, False, True]))
-        >>> looks.just_lost(np.array([0, 1])).tolist()
-        [0]
-        """
-        return rows[self.tracked[rows]]
-
     def remember(self, row: int, descriptors: FloatArray) -> None:
         """Add ``(P, D)`` descriptors of people seen apart from target ``row`` as it was lost;
         the oldest go beyond :data:`NEIGHBOURS_KEPT`."""
@@ -71,13 +64,54 @@ class NeighbourLooks:
         kept = descriptors if old is None else np.concatenate([old, descriptors])
         self.descriptors[row] = kept[-NEIGHBOURS_KEPT:]
 
-    def end_frame(self, tracked: BoolArray) -> None:
-        """``(K,)`` which targets are tracked at the end of this frame. Those are followed
-        again: whom they were lost beside says nothing now (a wrong find would otherwise keep
-        the true target among them)."""
+    def end_frame(self, tracked: BoolArray, inactive: BoolArray) -> IntArray:
+        """``(K,)`` which targets are tracked, and which lost or out of view, at the end of this
+        frame. The tracked ones are followed again: whom they were lost beside says nothing now
+        (a wrong find would otherwise keep the true target among them).
+
+        Returns:
+            The targets lost on this frame after being tracked on the previous one.
+
+        >>> looks = NeighbourLooks.start(3)
+        >>> looks.end_frame(np.array([True, False, True]), np.array([False, True, False])).tolist()
+        [1]
+        >>> looks.end_frame(np.array([True, False, False]), np.array([False, True, True])).tolist()
+        [2]
+        """
+        lost = np.flatnonzero(self.tracked & inactive)
         for row in np.flatnonzero(tracked):
             self.descriptors[int(row)] = None
         self.tracked = np.asarray(tracked, dtype=bool).copy()
+        return lost
+
+    def remember_apart(
+        self,
+        memory: AppearanceMemory,
+        image: UInt8Array | None,
+        detections: Detections,
+        free: IntArray,
+        rows: IntArray,
+        places: tuple[FloatArray, ...],
+        reach: FloatArray,
+        limit: float,
+    ) -> None:
+        """Keep, for each target of ``rows``, the looks of the detections ``free`` (rows of
+        ``detections`` no target holds) farther than ``reach[m]`` pixels from each of its
+        ``places`` (``(M, 2)`` arrays: where it may be), unless within ``limit`` of its
+        descriptor (the search by look would take them for it)."""
+        if len(rows) == 0 or image is None or not memory.active:
+            return
+        points = detections.points[free]
+        apart = np.ones((len(rows), len(free)), dtype=bool)
+        for place in places:
+            apart &= distance_matrix(place, points) > reach[:, None]
+        wanted = np.flatnonzero(apart.any(axis=0))
+        look, described = memory.described_distances(image, rows, detections, free[wanted])
+        if described is None:
+            return
+        for m, row in enumerate(rows):
+            # NaN (the target never described) keeps nothing: nothing to compare with.
+            self.remember(int(row), described[apart[m, wanted] & (look[m] > limit)])
 
     def distances(self, rows: IntArray, described: FloatArray, metric: Metric) -> FloatArray:
         """``(M, N)`` distance of each of ``(N, D)`` descriptors ``described`` to the nearest

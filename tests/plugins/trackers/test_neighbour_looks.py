@@ -13,10 +13,14 @@ def _euclidean(first: np.ndarray, second: np.ndarray) -> np.ndarray:
 
 def test_only_a_target_tracked_on_the_previous_frame_is_just_lost() -> None:
     looks = NeighbourLooks.start(3)
-    assert looks.just_lost(np.array([0, 1, 2])).tolist() == [0, 1, 2]  # all given tracked
-    looks.end_frame(np.array([False, True, False]))
+    every = np.ones(3, dtype=bool)
+    # All given tracked; all three lost on the first frame count.
+    assert looks.end_frame(~every, every).tolist() == [0, 1, 2]
     # Lost (or out of view, or placed at b) on the frame before: it may be anywhere now.
-    assert looks.just_lost(np.array([0, 2])).tolist() == []
+    assert (
+        looks.end_frame(np.array([False, True, False]), np.array([True, False, True])).tolist()
+        == []
+    )
     looks.remember(1, np.ones((2, 3)))
     looks.remember(1, np.zeros((0, 3)))  # nobody seen apart: nothing added
     looks.remember(1, np.zeros((1, 3)))  # a second loss adds
@@ -36,7 +40,7 @@ def test_forgotten_when_tracked_again() -> None:
     looks = NeighbourLooks.start(2)
     looks.remember(0, np.ones((1, 2)))
     looks.remember(1, np.ones((1, 2)))
-    looks.end_frame(np.array([True, False]))
+    looks.end_frame(np.array([True, False]), np.array([False, True]))
     assert looks.descriptors[0] is None
     distance = looks.distances(np.array([0, 1]), np.array([[1.0, 1.0], [4.0, 5.0]]), _euclidean)
     assert np.isinf(distance[0]).all()
