@@ -7,7 +7,8 @@ Kalman1 of the paper is ``association: hungarian``, Kalman2 ``association: neare
 Its parameters are in :mod:`trackfw_plugins.trackers.kalman_params`. The filter maths lives in
 :mod:`trackfw_plugins.maths.kalman`, the association in
 :mod:`trackfw_plugins.maths.assignment`, the targets' states (tracked, lost, out-of-view,
-tentative) and their re-acquisition in :mod:`trackfw_plugins.trackers.lifecycle`, the bystanders'
+tentative) and expected places in :mod:`trackfw_plugins.trackers.lifecycle`, the re-acquisition
+of lost targets in :mod:`trackfw_plugins.trackers.reacquisition`, the bystanders'
 anonymous tracks in :mod:`trackfw_plugins.trackers.bystanders`, the look check of the matches at b
 in :mod:`trackfw_plugins.trackers.look_at_b`, the walk check after b in
 :mod:`trackfw_plugins.trackers.walk_check`, the start split in
@@ -43,24 +44,19 @@ from trackfw_plugins.trackers.appearance_memory import AppearanceMemory
 from trackfw_plugins.trackers.bystanders import Bystanders
 from trackfw_plugins.trackers.camera_motion import FrameMotion
 from trackfw_plugins.trackers.kalman_params import KalmanTrackerParams
-from trackfw_plugins.trackers.lifecycle import ACTIVE, Lifecycle
+from trackfw_plugins.trackers.lifecycle import Lifecycle
 from trackfw_plugins.trackers.look_at_b import (
     box_sides,
     check_looks_at_b,
     detection_rows_of,
     matched_sides,
-    refuse_beside,
     refuse_by_size,
 )
-from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio, stands_out
-from trackfw_plugins.trackers.neighbour_looks import NEIGHBOUR_APART_SIDES, NeighbourLooks
+from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio
+from trackfw_plugins.trackers.neighbour_looks import NeighbourLooks
+from trackfw_plugins.trackers.reacquisition import Reacquisition
 from trackfw_plugins.trackers.start_split import StartSplit
 from trackfw_plugins.trackers.walk_check import Snapshot, WalkCheck
-
-#: Seconds between two searches of the whole frame for a lost target's look (each describes every
-#: detection of the frame; a returner found within 0.2 s misses at most a few frames).
-LOOK_ANYWHERE_PERIOD_S = 0.2
-
 
 #: Beyond the usual gate a not yet seen target takes only a detection at most this times as far
 #: as the next one.
@@ -103,18 +99,23 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.memory = AppearanceMemory(
             params.appearance, len(positions), self.video.height, self.life.fps
         )
-        self._last_frame: tuple[UInt8Array | None, Detections, IntArray] | None = None
-        self.neighbours = (
-            None
-            if params.appearance.neighbour_margin is None
-            else NeighbourLooks.start(len(positions))
-        )
         self.bystanders = (
             None
             if params.bystanders is None
             else Bystanders.start(
                 params.bystanders, params.P0, params.Q, params.R, targets=len(positions)
             )
+        )
+        self.reacquisition = Reacquisition(
+            params.appearance,
+            self.life,
+            self.memory,
+            self.bank,
+            self.gate,
+            self.bystanders,
+            None
+            if params.appearance.neighbour_margin is None
+            else NeighbourLooks.start(len(positions)),
         )
         if self.frame_motion is not None:
             self.frame_motion.remember(self.image, None)
@@ -294,7 +295,9 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             )
             self._split_start(t, detections, targets, taken, sides)
         self._check_walks(t, detections)
-        self._remember_neighbours(detections, np.concatenate([taken, columns, shared]))
+        self.reacquisition.end_frame(
+            self.image, detections, np.concatenate([taken, columns, shared])
+        )
 
     def _split_start(
         self, t: int, detections: Detections, targets: IntArray, taken: IntArray, sides: FloatArray
@@ -417,115 +420,16 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
     def _reacquire(
         self, t: int, detections: Detections, inactive: IntArray, anchors: IntArray, taken: IntArray
     ) -> tuple[IntArray, IntArray]:
-        """Re-find lost and out-of-view targets on the detections left over.
+        """:meth:`.Reacquisition.find`, the targets found restarted on their detections.
 
         Returns the rows found and the detection (row of ``detections``) of each.
-
-        docs/algorithms/segment-tracker.md#re-acquisition
         """
-        if len(inactive) == 0:
-            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-        life = self.life
-        expected = life.expected(inactive, self.bank.positions, anchors)
-        free = np.setdiff1d(np.arange(len(detections)), taken)
-        cost, entering = life.reacquire_cost(
-            t, expected, inactive, detections.points[free], box_sides(detections)[free]
+        found, columns = self.reacquisition.find(
+            t, self.image, detections, inactive, anchors, taken
         )
-        # Through the border only with a look that agrees: without a descriptor (or with
-        # 'none') a target never re-enters away from its expected place.
-        veto = self.memory.veto(self.image, inactive, detections, free, cost <= 1.0, entering)
-        cost[veto | (entering & (not self.memory.active or self.image is None))] = np.inf
-        cost[self._seen_apart(inactive, free, len(detections))] = np.inf
-        columns = hungarian(cost, 1.0)
-        hit = columns >= 0
-        found, chosen = inactive[hit], free[columns[hit]]
-        by_look, looked = self._reacquire_by_look(t, detections, inactive[~hit], free, chosen)
-        hit[np.isin(inactive, by_look)] = True
-        found, chosen = np.concatenate([found, by_look]), np.concatenate([chosen, looked])
-        self._restart(found, detections.points[chosen])
-        self.matched[found] = detections.index[chosen]
-        # A target not found waits at its expected place, still: its own velocity was measured
-        # before it vanished and would carry it away from the group.
-        waiting = inactive[~hit]
-        self.bank.means[waiting, :2] = expected[~hit]
-        self.bank.means[waiting, 2:] = 0.0
-        life.place(t, waiting, expected[~hit])
-        return found, chosen
-
-    def _reacquire_by_look(
-        self, t: int, detections: Detections, rows: IntArray, free: IntArray, taken: IntArray
-    ) -> tuple[IntArray, IntArray]:
-        """Re-find inactive ``rows`` anywhere by look (``appearance.anywhere_max_distance``).
-
-        The group's offsets go stale while a target is lost in a crowd that walks both ways, and
-        its expected place drifts away from where it is; its look does not. A target takes the
-        detection of ``free`` not ``taken`` that looks most like it when that one is within the
-        limit and nearer in look than every other detection of the frame by ``anywhere_margin``
-        (a bystander rarely stands out from the rest of the crowd that clearly). Checked every
-        :data:`LOOK_ANYWHERE_PERIOD_S`: it describes every detection of the frame.
-
-        Returns:
-            The rows found and the detection (row of ``detections``) of each.
-        """
-        settings = self.params.appearance
-        none = np.zeros(0, dtype=np.int64)
-        period = max(1, round(LOOK_ANYWHERE_PERIOD_S * self.life.fps))
-        if settings.anywhere_max_distance is None or len(rows) == 0 or t % period != 0:
-            return none, none
-        free = np.setdiff1d(free, taken)
-        if len(free) == 0:
-            return none, none
-        look, described = self.memory.described_looks(
-            self.image, rows, detections, np.arange(len(detections))
-        )
-        clear = stands_out(look, settings.anywhere_margin)
-        cost = np.where(clear, look, np.inf)[:, free]
-        cost[self._seen_apart(rows, free, len(detections))] = np.inf
-        if self.neighbours is not None and described is not None:
-            margin = settings.neighbour_margin or 0.0
-            beside = self.neighbours.distances(rows, described[free], self.memory.distance_matrix)
-            cost[~(cost + margin <= beside)] = np.inf
-        columns = hungarian(cost, settings.anywhere_max_distance)
-        hit = columns >= 0
-        return rows[hit], free[columns[hit]]
-
-    def _remember_neighbours(self, detections: Detections, held: IntArray) -> None:
-        """At the end of a frame, keep the looks of the people seen apart from each target
-        lost on it after being tracked (:mod:`.neighbour_looks`; ``held``: the rows of
-        ``detections`` the targets hold), and the frame itself for b (:meth:`_neighbours_at_a`)."""
-        if self.neighbours is None:
-            return
-        status = self.life.status
-        lost = self.neighbours.end_frame(status == TRACKED, ~np.isin(status, ACTIVE))
-        self._last_frame = (self.image, detections, held)
-        self._remember_apart(self.image, detections, held, lost)
-
-    def _neighbours_at_a(self, active: IntArray) -> None:
-        """At b: keep the people seen apart from each of the ``active`` targets tracked on frame
-        a (the last frame stepped): two heads seen at once there are two people."""
-        neighbours, last = self.neighbours, self._last_frame
-        self._last_frame = None
-        if neighbours is not None and last is not None:
-            image, before, held = last
-            self._remember_apart(image, before, held, active[neighbours.tracked[active]])
-
-    def _remember_apart(
-        self, image: UInt8Array | None, detections: Detections, held: IntArray, rows: IntArray
-    ) -> None:
-        """:meth:`.NeighbourLooks.remember_apart` for targets ``rows``: apart is farther than
-        :data:`.NEIGHBOUR_APART_SIDES` head sides (at least the bystanders' ``apart_gates``
-        association gates) from both its filter's place and its last detection; the search's
-        own limit (``anywhere_max_distance``) keeps a look that may be the target's out."""
-        neighbours, bystanders, life = self.neighbours, self.bystanders, self.life
-        limit = self.params.appearance.anywhere_max_distance
-        if neighbours is None or limit is None:
-            return
-        apart_gates = 2.0 if bystanders is None else bystanders.settings.apart_gates
-        gates = np.inf if self.gate is None else apart_gates * self.gate
-        reach = np.maximum(gates, NEIGHBOUR_APART_SIDES * np.nan_to_num(life.size[rows], nan=0.0))
-        free = np.setdiff1d(np.arange(len(detections)), held)
-        places = (self.bank.positions[rows], life.anchor[rows])
-        neighbours.remember_apart(self.memory, image, detections, free, rows, places, reach, limit)
+        self._restart(found, detections.points[columns])
+        self.matched[found] = detections.index[columns]
+        return found, columns
 
     def _looks_at_b(
         self,
@@ -538,7 +442,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
     ) -> tuple[IntArray, IntArray]:
         """The matches at b checked by look and the refused and lost targets re-matched by look
         (:func:`.check_looks_at_b`; arrays updated in place), then by the people kept beside
-        each target (:meth:`_refuse_beside`).
+        each target (:meth:`.Reacquisition.refuse_beside`).
 
         Returns:
             The refused targets left without a match, and the inactive targets found.
@@ -565,48 +469,18 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             refused,
         )
         # The re-match by look may hand a refused target a neighbour's head again.
-        again = self._refuse_beside(
-            np.flatnonzero(detection_rows != matches_before), matched, detection_rows, detections
+        again = self.reacquisition.refuse_beside(
+            self.image,
+            np.flatnonzero(detection_rows != matches_before),
+            matched,
+            detection_rows,
+            detections,
         )
         unlike, returned = (
             np.union1d(unlike, again[np.isin(again, active)]),
             np.setdiff1d(returned, again),
         )
         return unlike, returned
-
-    def _refuse_beside(
-        self,
-        rows: IntArray,
-        matched: IntArray,
-        detection_rows: IntArray,
-        detections: Detections | None,
-    ) -> IntArray:
-        """:func:`.refuse_beside` for ``rows`` (none without the neighbour looks)."""
-        if self.neighbours is None:
-            return np.zeros(0, dtype=np.int64)
-        margin = self.params.appearance.neighbour_margin or 0.0
-        return refuse_beside(
-            self.memory,
-            self.neighbours,
-            self.image,
-            margin,
-            rows,
-            matched,
-            detection_rows,
-            detections,
-        )
-
-    def _seen_apart(self, rows: IntArray, columns: IntArray, count: int) -> BoolArray:
-        """``(M, N)``: whether detection ``columns[n]`` (of ``count``) is held by a bystander
-        track seen apart from target ``rows[m]``'s own detection, without a break since.
-
-        Two heads seen on the same frame are two people, so that bystander is not the lost
-        target (docs/algorithms/segment-tracker.md#bystander-tracks).
-        """
-        bystanders = self.bystanders
-        if bystanders is None or not bystanders.settings.refuse_seen_apart:
-            return np.zeros((len(rows), len(columns)), dtype=bool)
-        return bystanders.seen_apart(rows, columns, count)
 
     def _restart(self, rows: IntArray, positions: FloatArray) -> None:
         """Restart the filters ``rows`` at ``(M, 2)`` positions with zero velocity and P0."""
@@ -637,8 +511,10 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         detection_rows = detection_rows_of(matched, detections)
         sides = matched_sides(detection_rows, detections)
         refused = refuse_by_size(self.life, active, matched, detection_rows, sides)
-        self._neighbours_at_a(active)
-        beside = self._refuse_beside(active, matched, detection_rows, detections)
+        self.reacquisition.neighbours_at_a(active)
+        beside = self.reacquisition.refuse_beside(
+            self.image, active, matched, detection_rows, detections
+        )
         refused = np.union1d(refused, beside)
         unlike, returned = self._looks_at_b(
             active, matched, detection_rows, positions, detections, refused
@@ -672,9 +548,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
                 self.memory.descriptors,
                 self.memory.described_at,
             )
-        if self.neighbours is not None:
-            status = self.life.status
-            self.neighbours.end_frame(status == TRACKED, ~np.isin(status, ACTIVE))
+        self.reacquisition.end_gap()
 
     def _end_segment_state(self) -> None:
         """At b the bystander tracks and the start split end: they belong to the camera pose

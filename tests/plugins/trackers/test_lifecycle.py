@@ -511,7 +511,7 @@ def _edge_tracker(looks: bool = True, **lifecycle: Any) -> Any:
     def initialise(*args: Any) -> None:
         original(*args)
         if looks:
-            tracker.memory = _AgreeingLooks()
+            tracker.memory = tracker.reacquisition.memory = _AgreeingLooks()
             tracker.image = np.zeros((720, 1280, 3), dtype=np.uint8)
 
     tracker.initialise = initialise
@@ -705,13 +705,13 @@ def test_a_head_the_search_would_take_for_the_target_is_not_kept_as_a_neighbour(
     # Deep red lies within the search's limit of red (it might be red, moved off its expected
     # place): only dark red is kept; red itself coming back is found.
     tracker = _lost_red_beside(0.0)
-    assert tracker.neighbours.descriptors[0].shape[0] == 1
+    assert tracker.reacquisition.neighbours.descriptors[0].shape[0] == 1
     red = np.array([1000.0, 600.0])
     tracker.see(_painted([(*GROUP[1], GREEN), (*GROUP[2], BLUE), (*red, RED)]))
     tracker.step(30, _seen(np.vstack([GROUP[1:], red])))
     assert tracker.statuses()[0] == "tracked"
     tracker.step(31, _seen(np.vstack([GROUP[1:], red])))
-    assert tracker.neighbours.descriptors[0] is None  # followed again: forgotten
+    assert tracker.reacquisition.neighbours.descriptors[0] is None  # followed again: forgotten
 
 
 @pytest.mark.parametrize("neighbour_margin", [None, 0.0])
