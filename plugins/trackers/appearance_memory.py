@@ -161,6 +161,10 @@ class AppearanceMemory:
         # Frame of a first crop unlike the target, awaiting the second check (-1: none).
         self.unlike_at = np.full(count, -1, dtype=np.int64)
         self.recheck_frames = settings.swap_recheck_s * fps
+        # The descriptors of the detections described on the last frame, by row: the look
+        # checks of one frame (refresh, veto, search by look, neighbours) describe the same
+        # crops, each crop on its own, so a second description is the first one again.
+        self._frame: tuple[UInt8Array, Detections, dict[int, FloatArray]] | None = None
 
     @property
     def active(self) -> bool:
@@ -168,7 +172,24 @@ class AppearanceMemory:
         return self.settings.descriptor != "none"
 
     def describe(self, image: UInt8Array, detections: Detections, rows: IntArray) -> FloatArray:
-        """``(M, D)`` descriptors of the detections ``rows``."""
+        """``(M, D)`` descriptors of the detections ``rows`` (each described once per frame)."""
+        rows = np.asarray(rows, dtype=np.int64).reshape(-1)
+        if len(rows) == 0:
+            return self._describe(image, detections, rows)
+        frame = self._frame
+        if frame is None or frame[0] is not image or frame[1] is not detections:
+            frame = self._frame = (image, detections, {})
+        known = frame[2]
+        missing = np.unique(rows[[int(row) not in known for row in rows]])
+        if len(missing):
+            for row, descriptor in zip(
+                missing, self._describe(image, detections, missing), strict=True
+            ):
+                known[int(row)] = descriptor
+        return np.stack([known[int(row)] for row in rows])
+
+    def _describe(self, image: UInt8Array, detections: Detections, rows: IntArray) -> FloatArray:
+        """``(M, D)`` descriptors of the detections ``rows``, described now."""
         points = detections.points[rows]
         if self.embedder is not None:
             boxes = body_boxes(points, detections, rows, self.fallback_size)

@@ -105,3 +105,25 @@ def test_a_crop_unlike_the_target_twice_in_a_row_is_a_swap() -> None:
     assert memory.remember(7, image, target, green, row).tolist() == []
     assert memory.remember(12, image, target, red, row).tolist() == []
     assert memory.remember(13, image, target, green, row).tolist() == []
+
+
+def test_a_detection_is_described_once_per_frame() -> None:
+    image = _image()
+    memory = AppearanceMemory(AppearanceSettings(descriptor="patch"), 1, 360, 25.0)
+    described: list[list[int]] = []
+    describe_now = memory._describe
+
+    def counted(image: np.ndarray, detections: Detections, rows: np.ndarray) -> np.ndarray:
+        described.append(rows.tolist())
+        return describe_now(image, detections, rows)
+
+    memory._describe = counted  # type: ignore[method-assign]
+    frame = Detections.from_points(np.array([[150.0, 180.0], [480.0, 180.0], [160.0, 170.0]]))
+    first = memory.describe(image, frame, np.array([2, 0]))
+    again = memory.describe(image, frame, np.array([0, 1, 2]))
+    assert described == [[0, 2], [1]]
+    assert np.array_equal(again[[2, 0]], first)
+    assert np.array_equal(again, describe_now(image, frame, np.arange(3)))
+    # The next frame's detections (a new object) are described afresh.
+    memory.describe(image, Detections.from_points(frame.points.copy()), np.array([0]))
+    assert described[-1] == [0]
