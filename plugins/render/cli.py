@@ -39,7 +39,9 @@ def render_command(
     ] = None,
     dataset: Annotated[
         Path | None,
-        typer.Option("--dataset", "-d", help="Dataset folder with the video (default: summary.json)."),
+        typer.Option(
+            "--dataset", "-d", help="Dataset folder with the video (default: summary.json)."
+        ),
     ] = None,
     out: Annotated[
         Path | None,

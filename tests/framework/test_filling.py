@@ -53,7 +53,9 @@ def test_only_short_absences_inside_one_segment_are_filled() -> None:
     assert not shown[1][0] and positions[1][1].tolist() == [0.0, 10.0]
 
 
-def test_a_target_taken_up_soon_after_b_is_reported_from_b_on_the_line_of_its_first_reports() -> None:
+def test_a_target_taken_up_soon_after_b_is_reported_from_b_on_the_line_of_its_first_reports() -> (
+    None
+):
     # Frames 0-1 are segment 0; 10-15 follow an interval. Target 0 is first reported on 12 (two
     # frames after b) and walks 3 px a frame; target 1 first on 14 (four frames after b); target
     # 2 on b itself; target 3 only on 12.

@@ -53,7 +53,9 @@ def test_eval_defaults_to_the_runs_folder_and_raises_user_errors(
     make_run(tmp_path / "runs", "a", truth, n_frames=5)
     runner = CliRunner()
     # -d as for trackfw bench: one spelling of the dataset option across the commands.
-    ok = runner.invoke(_app(), ["eval", "-d", str(tmp_path / "data"), "--runs", str(tmp_path / "runs")])
+    ok = runner.invoke(
+        _app(), ["eval", "-d", str(tmp_path / "data"), "--runs", str(tmp_path / "runs")]
+    )
     assert ok.exit_code == 0, ok.output
     assert (tmp_path / "runs" / "eval.csv").is_file()
     bad = runner.invoke(

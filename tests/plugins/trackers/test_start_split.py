@@ -155,9 +155,7 @@ def test_no_trade_after_an_interval() -> None:
 def test_the_first_step_may_come_after_info_less_frames() -> None:
     split = _split_beside_the_border(20.0)  # first step on frame 1
     assert split.first_error.tolist() == [40.0]
-    late = StartSplit.begin(
-        StartSplitSettings(), FPS, (320, 240), 0, np.array([[45.0, 50.0]])
-    )
+    late = StartSplit.begin(StartSplitSettings(), FPS, (320, 240), 0, np.array([[45.0, 50.0]]))
     late.first_step(6, np.array([0]), np.array([[55.0, 50.0]]), np.array([20.0]))
     late.first_step(7, np.array([0]), np.array([[95.0, 50.0]]), np.array([20.0]))
     assert late.first_error.tolist() == [10.0]  # the first step's, not a later one's
