@@ -3,9 +3,9 @@
 See docs/algorithms/segment-tracker.md#target-lifecycle. The tracker associates its ``tracked``
 and ``tentative`` targets as before; this module decides their state from the association, keeps
 where a lost target is expected (from its offsets to the group, not from its own drifting
-prediction) and re-acquires lost and out-of-view targets on the detections left over. It never
-creates a target: the people of interest are the fixed set given on the first frame. The border
-geometry of a return through an image edge is in :mod:`trackfw_plugins.trackers.border_return`.
+prediction) and how large its head should be. It never creates a target: the people of interest
+are the fixed set given on the first frame. Re-finding lost and out-of-view targets on the
+detections left over is :mod:`trackfw_plugins.trackers.reacquisition`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from pydantic import ConfigDict, Field
 from trackfw.arrays import BoolArray, FloatArray, IntArray
 from trackfw.records import LOST, OUT_OF_VIEW, TENTATIVE, TRACKED, VideoContext
 from trackfw.stages import FiniteModel
-from trackfw_plugins.trackers.border_return import border_return_cost, image_edge, near_edge
+from trackfw_plugins.trackers.border_return import image_edge, near_edge
 
 #: States whose targets the tracker associates on every frame.
 ACTIVE = (TRACKED, TENTATIVE)
@@ -409,34 +409,6 @@ class Lifecycle:
             ratio = np.abs(np.log(self.size[rows][:, None] / sizes[None, :]))
         return np.nan_to_num(ratio, nan=0.0) > np.log(ratio_max)
 
-    def expected_size_mismatch(
-        self, rows: IntArray, points: FloatArray, sizes: FloatArray
-    ) -> BoolArray:
-        """``(M, N)``: whether detection n (at ``points[n]``, box side ``sizes[n]``) is too large or
-        too small for target ``rows[m]`` at that place.
-
-        A returning head is compared with the size the group's current line gives at the
-        detection's row times the target's own relative size, not with its box at exit: a target
-        that walks out of the bottom edge comes back with a head far larger than when it left.
-        """
-        ratio_max = self.settings.size_ratio_max
-        if ratio_max is None or np.isnan(self.size_line[0]):
-            return self.size_mismatch(rows, sizes)
-        expected = self.relative_size[rows][:, None] * self.line_size(points[:, 1])[None, :]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = np.abs(np.log(expected / sizes[None, :]))
-        return np.nan_to_num(ratio, nan=0.0) > np.log(ratio_max)
-
-    def gates(self, t: int, rows: IntArray) -> FloatArray:
-        """``(M,)`` re-acquisition gates in pixels, growing with the seconds lost."""
-        settings = self.settings
-        seconds = (t - self.last_matched[rows]) / self.fps
-        gate = (
-            settings.reacquire_gate_px_at_1080
-            + settings.reacquire_growth_px_per_s_at_1080 * np.maximum(seconds, 0.0)
-        )
-        return np.minimum(gate, settings.reacquire_max_px_at_1080) * self.scale
-
     def unseen(self, rows: IntArray) -> BoolArray:
         """``(M,)`` whether no detection has supported each of ``rows`` since its given start.
 
@@ -444,69 +416,6 @@ class Lifecycle:
         the same heads, nor are the offsets measured between them.
         """
         return self.last_matched[rows] <= self.started_at
-
-    def reacquire_cost(
-        self, t: int, expected: FloatArray, rows: IntArray, points: FloatArray, sizes: FloatArray
-    ) -> tuple[FloatArray, BoolArray]:
-        """``(M, N)`` cost of giving each inactive target of ``rows`` each of ``points`` (box
-        sides ``sizes``), and ``(M, N)`` whether a possible pair is possible only through the
-        border rule (:meth:`reentry_cost`); a pair is possible where the cost is at most 1.
-
-        The cost is the distance over the target's gate, so a target lost longer reaches
-        farther; an out-of-view target comes back through the edge near where it is expected.
-        Heads of another size are refused (infinite cost). A target not yet detected
-        (:meth:`unseen`) is also looked for at its given start position, each pair taking the
-        cheaper of the two places: offsets between given points carry a target that stands
-        along with neighbours that walk.
-        """
-        cost, entering = self._cost_from(t, expected, rows, points, sizes)
-        unseen = self.unseen(rows)
-        if unseen.any():
-            given, given_entering = self._cost_from(t, self.anchor[rows], rows, points, sizes)
-            nearer = unseen[:, None] & (given < cost)
-            cost = np.where(nearer, given, cost)
-            entering = np.where(nearer, given_entering, entering)
-        return cost, entering
-
-    def _cost_from(
-        self, t: int, expected: FloatArray, rows: IntArray, points: FloatArray, sizes: FloatArray
-    ) -> tuple[FloatArray, BoolArray]:
-        """:meth:`reacquire_cost` with each of ``rows`` expected at one ``(M, 2)`` place."""
-        near = np.linalg.norm(expected[:, None, :] - points[None, :, :], axis=2)
-        near = near / self.gates(t, rows)[:, None]
-        near[self.size_mismatch(rows, sizes)] = np.inf
-        if self.settings.reentry_margin_px_at_1080 is None:
-            return near, np.zeros(near.shape, dtype=bool)
-        entry = self.reentry_cost(t, expected, rows, points)
-        # Near its expected place a head is compared with its box at exit; through the border
-        # with the size expected there. The line's looser check near the expected place let
-        # bystanders in on TUD-Stadtmitte (seed 1: kalman1-ar-oracle MOTA 58.4 -> 53.7).
-        entry[self.expected_size_mismatch(rows, points, sizes)] = np.inf
-        cost = np.minimum(near, entry)
-        return cost, (cost <= 1.0) & (near > 1.0)
-
-    def reentry_cost(
-        self, t: int, expected: FloatArray, rows: IntArray, points: FloatArray
-    ) -> FloatArray:
-        """``(M, N)`` cost of a return through the border near where each of ``rows`` left
-        (:func:`~trackfw_plugins.trackers.border_return.border_return_cost`)."""
-        settings = self.settings
-        if settings.reentry_margin_px_at_1080 is None:
-            return np.full((len(rows), len(points)), np.inf)
-        seconds = np.maximum((t - self.last_matched[rows]) / self.fps, 0.0)
-        gates = np.minimum(
-            settings.reacquire_gate_px_at_1080 + settings.reentry_growth_px_per_s_at_1080 * seconds,
-            settings.reentry_max_px_at_1080,
-        )
-        return border_return_cost(
-            self.exit_side[rows],
-            expected,
-            gates * self.scale,
-            points,
-            settings.reentry_margin_px_at_1080 * self.scale,
-            self.width,
-            self.height,
-        )
 
     def place(self, t: int, rows: IntArray, expected: FloatArray) -> None:
         """Inactive ``rows`` not re-acquired: out of view when expected outside, lost otherwise."""
