@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -63,12 +63,15 @@ class GapRecord:
         target_ids: the targets, in the order of the solution's arrays.
         solution: the gap matcher's solution, or None when the video ended inside the interval.
         milliseconds: the gap matcher's time.
+        at_b: by target id, what the tracker made of the matches at b
+            (:meth:`trackfw.stages.Tracker.checked_at_b`); empty when it records nothing.
     """
 
     interval: Interval
     target_ids: list[int]
     solution: GapSolution | None = None
     milliseconds: float = 0.0
+    at_b: dict[int, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def resolved(self) -> bool:
@@ -363,6 +366,7 @@ class _OnlineLoop:
                 _ids(problem.target_ids),
                 solution,
                 b.record.milliseconds["gap_matcher"],
+                {states[row].target_id: outcome for row, outcome in tracker.checked_at_b().items()},
             )
         )
         return segment.next()

@@ -297,6 +297,17 @@ class Tracker(Stage[P]):
         """
         return []
 
+    def checked_at_b(self) -> dict[int, dict[str, Any]]:
+        """What the tracker made of the gap matcher's matches at the last :meth:`reinitialise`.
+
+        Keyed by target row; each value is JSON-ready and recorded in gaps.json under ``at_b``
+        (by target id). A tracker that checks the matches at b (by size, by look, ...) says
+        there which match it kept, which it refused and why, and which target it found itself,
+        so that a user reading gaps.json sees the outcome, not only the proposal. The default,
+        for a tracker that takes every match as given, records nothing.
+        """
+        return {}
+
     def positions(self) -> FloatArray:
         """``(K, 2)`` current positions; override when it can be cheaper than :meth:`states`.
 

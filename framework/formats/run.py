@@ -155,6 +155,10 @@ def gaps_data(run: VideoRun) -> list[dict[str, Any]]:
                 "diagnostics": gap.diagnostics,
             }
         )
+        if gap.at_b:
+            entries[-1]["at_b"] = {
+                str(target_id): outcome for target_id, outcome in sorted(gap.at_b.items())
+            }
     return entries
 
 

@@ -50,6 +50,7 @@ from trackfw_plugins.trackers.look_at_b import (
     check_looks_at_b,
     detection_rows_of,
     matched_sides,
+    record_at_b,
     refuse_by_size,
 )
 from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio
@@ -81,6 +82,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self.video = video
         self.image = None
         self._frame = 0
+        self._checked_at_b: dict[int, dict[str, object]] = {}
         self.frame_motion = FrameMotion(params.cmc_registration) if params.cmc else None
         self.gate = (
             None
@@ -439,6 +441,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         positions: FloatArray,
         detections: Detections | None,
         refused: IntArray,
+        checked_looks: FloatArray,
     ) -> tuple[IntArray, IntArray]:
         """The matches at b checked by look and the refused and lost targets re-matched by look
         (:func:`.check_looks_at_b`; arrays updated in place), then by the people kept beside
@@ -467,6 +470,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             detections,
             inactive,
             refused,
+            checked_looks,
         )
         # The re-match by look may hand a refused target a neighbour's head again.
         again = self.reacquisition.refuse_beside(
@@ -504,6 +508,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2).copy()
         matched = np.asarray(matched_detection, dtype=np.int64).copy()
+        proposed = matched.copy()
         if self.frame_motion is not None:
             self.frame_motion.remember(self.image, None if detections is None else detections.boxes)
         self._end_segment_state()
@@ -511,13 +516,15 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         detection_rows = detection_rows_of(matched, detections)
         sides = matched_sides(detection_rows, detections)
         refused = refuse_by_size(self.life, active, matched, detection_rows, sides)
+        by_size = np.flatnonzero((proposed != NO_MATCH) & (matched == NO_MATCH))
         self.reacquisition.neighbours_at_a(active)
         beside = self.reacquisition.refuse_beside(
             self.image, active, matched, detection_rows, detections
         )
         refused = np.union1d(refused, beside)
+        looks = np.full(len(matched), np.nan)
         unlike, returned = self._looks_at_b(
-            active, matched, detection_rows, positions, detections, refused
+            active, matched, detection_rows, positions, detections, refused, looks
         )
         sides = matched_sides(detection_rows, detections)
         if self.params.reinit_at_b:
@@ -549,6 +556,18 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
                 self.memory.described_at,
             )
         self.reacquisition.end_gap()
+        self._checked_at_b = record_at_b(
+            proposed,
+            self.matched,
+            looks,
+            {"size": by_size, "seen apart at a": beside},
+            np.union1d(active, returned),
+            self.statuses(),
+        )
+
+    def checked_at_b(self) -> dict[int, dict[str, object]]:
+        """The gap matcher's matches at the last b as checked here (:func:`.record_at_b`)."""
+        return self._checked_at_b
 
     def _end_segment_state(self) -> None:
         """At b the bystander tracks and the start split end: they belong to the camera pose

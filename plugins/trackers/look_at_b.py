@@ -92,6 +92,7 @@ def check_looks_at_b(
     detections: Detections | None,
     inactive: IntArray,
     refused: IntArray | None = None,
+    checked_looks: FloatArray | None = None,
 ) -> tuple[IntArray, IntArray]:
     """Refuse the matches at b that look like someone else; re-match those targets by look.
 
@@ -114,6 +115,8 @@ def check_looks_at_b(
         inactive: rows of the lost and out-of-view targets looked for by look.
         refused: rows of the targets whose match was already refused (their head's size):
             re-matched by look like the ones the look refuses.
+        checked_looks: ``(K,)``, when given, receives the look distance of each checked match
+            (the value compared with ``gap_max_distance``), for the record of the check.
 
     Returns:
         The refused targets left without a match (to be lost), and the inactive targets that
@@ -126,6 +129,8 @@ def check_looks_at_b(
         return (none if refused is None else refused), none
     checked = active[detection_rows[active] >= 0]
     look = memory.looks(image, checked, detections, detection_rows[checked])
+    if checked_looks is not None:
+        checked_looks[checked] = np.diagonal(look)
     unlike = checked[np.diagonal(look) > limit]  # NaN (nothing known) refuses nothing
     if refused is not None:
         unlike = np.concatenate([unlike, refused])
@@ -186,3 +191,48 @@ def refuse_beside(
     matched[dropped] = NO_MATCH
     detection_rows[dropped] = NO_MATCH
     return dropped
+
+
+def record_at_b(
+    proposed: IntArray,
+    final: IntArray,
+    looks: FloatArray,
+    refusals: dict[str, IntArray],
+    rows: IntArray,
+    statuses: list[str],
+) -> dict[int, dict[str, object]]:
+    """The record of the check at b (gaps.json ``at_b``) for ``rows``, keyed by row.
+
+    Args:
+        proposed: ``(K,)`` detection index the gap matcher gave each target (-1: none).
+        final: ``(K,)`` detection index each target holds after the check (-1: none).
+        looks: ``(K,)`` look distance of each checked match (NaN: not looked at).
+        refusals: reason -> rows whose proposed match was refused for it (the first reason
+            listed wins); a refused match not listed was refused by look.
+        rows: the targets to record (those in the gap match and those found by look).
+        statuses: every target's lifecycle status after b.
+
+    >>> import numpy as np
+    >>> record = record_at_b(np.array([3, 4, -1]), np.array([3, 5, -1]),
+    ...                      np.array([0.1, 0.6, np.nan]), {}, np.arange(3),
+    ...                      ["tracked", "tracked", "tentative"])
+    >>> record[1]
+    {'proposed': 4, 'look': 0.6, 'refused': 'look', 'detection': 5, 'by': 'look', 'status': 'tracked'}
+    >>> record[2]["refused"], record[2]["by"]
+    (None, None)
+    """
+    record: dict[int, dict[str, object]] = {}
+    for row in rows.tolist():
+        given, held = int(proposed[row]), int(final[row])
+        reason = None
+        if given != NO_MATCH and held != given:
+            reason = next((name for name, refused in refusals.items() if row in refused), "look")
+        record[row] = {
+            "proposed": None if given == NO_MATCH else given,
+            "look": None if not np.isfinite(looks[row]) else round(float(looks[row]), 4),
+            "refused": reason,
+            "detection": None if held == NO_MATCH else held,
+            "by": None if held == NO_MATCH else ("gap matcher" if held == given else "look"),
+            "status": statuses[row],
+        }
+    return record

@@ -178,6 +178,13 @@ def test_outputs_are_written_and_consistent(points_video, pipeline_file, tmp_pat
     assert first[0] == "1" and float(first[4]) == 80.0
     gaps = json.loads((out / "gaps.json").read_text())
     assert gaps[0]["a"] == 39 and gaps[0]["b"] == 61 and gaps[0]["resolved"]
+    # The tracker's check of the matches at b: on this clean video every match is kept.
+    at_b = gaps[0]["at_b"]
+    assert set(at_b) == set(gaps[0]["matches"])
+    for target_id, outcome in at_b.items():
+        assert outcome["proposed"] == gaps[0]["matches"][target_id] == outcome["detection"]
+        assert outcome["refused"] is None and outcome["by"] == "gap matcher"
+        assert outcome["status"] == "tracked"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["frames_infoless"] == 21 and summary["pipeline_hash"] == pipeline.content_hash
     frames = list(csv.DictReader((out / "frames.csv").open()))
@@ -305,3 +312,30 @@ def test_withdrawn_reports_are_taken_back_and_not_filled_in(points_video, pipeli
     assert withdrawn_id in tracked[first + 6]
     # The other targets are untouched.
     assert all(len(tracked[t]) == len(run.target_ids) - 1 for t in range(first, first + 6))
+
+
+class _RecordingTracker(KalmanTracker):
+    """The Kalman tracker that says it refused target row 1's match at b."""
+
+    name = "recording"
+
+    def checked_at_b(self) -> dict[int, dict[str, object]]:
+        return {1: {"refused": "because"}}
+
+
+def test_the_trackers_check_at_b_is_recorded_by_target_id(
+    points_video, pipeline_file, tmp_path: Path
+) -> None:
+    module = ModuleType("recording_plugin")
+
+    @hookimpl
+    def trackfw_register_stages(registry: Registry) -> None:
+        registry.add_tracker(_RecordingTracker)
+
+    module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
+    registry = load_registry(extra_modules=[("recording", module)])
+    video = points_video(n_frames=100, intervals=[(40, 60)])
+    text = pipeline_file().read_text().replace("{type: kalman,", "{type: recording,")
+    run, pipeline = _run(video, pipeline_file(text, "recording.yaml"), registry=registry)
+    gaps = json.loads((write_run(run, pipeline, tmp_path / "out") / "gaps.json").read_text())
+    assert gaps[0]["at_b"] == {str(run.target_ids[1]): {"refused": "because"}}

@@ -7,7 +7,12 @@ import numpy as np
 from trackfw.records import Detections, VideoContext
 from trackfw_plugins.trackers.appearance_memory import AppearanceSettings
 from trackfw_plugins.trackers.lifecycle import Lifecycle, LifecycleSettings
-from trackfw_plugins.trackers.look_at_b import check_looks_at_b, detection_rows_of, matched_sides
+from trackfw_plugins.trackers.look_at_b import (
+    check_looks_at_b,
+    detection_rows_of,
+    matched_sides,
+    record_at_b,
+)
 
 VIDEO = VideoContext(name="v", path="v", n_frames=10, width=640, height=480)
 
@@ -57,6 +62,50 @@ def test_a_match_that_looks_like_someone_else_is_refused_and_rematched_by_look()
     assert unlike.tolist() == [] and returned.tolist() == []
     assert matched.tolist() == [2, 1, -1] and rows.tolist() == [2, 1, -1]
     assert positions[0].tolist() == [300.0, 100.0]
+
+
+def test_the_check_at_b_is_recorded_with_its_looks_and_reasons() -> None:
+    # The case above, recorded: target 0's match refused by look (0.6) and re-matched by look,
+    # target 1's kept (0.2), target 2's (refused by size before the look) left without one.
+    looks = _Looks([[0.6, 0.5, 0.1], [0.9, 0.2, 0.8], [0.7, 0.7, 0.7]])
+    life = Lifecycle.start(LifecycleSettings(), VIDEO, 0, np.zeros((3, 2)))
+    settings = AppearanceSettings(gap_max_distance=0.4, anywhere_max_distance=0.4)
+    proposed = np.array([0, 1, 2])
+    matched = np.array([0, 1, -1])
+    checked = np.full(3, np.nan)
+    check_looks_at_b(
+        looks,  # type: ignore[arg-type]
+        life,
+        None,
+        settings,
+        np.array([0, 1]),
+        matched,
+        matched.copy(),
+        np.zeros((3, 2)),
+        _detections(),
+        np.zeros(0, dtype=np.int64),
+        checked_looks=checked,
+    )
+    assert checked[:2].tolist() == [0.6, 0.2] and np.isnan(checked[2])
+    record = record_at_b(
+        proposed,
+        matched,
+        checked,
+        {"size": np.array([2])},
+        np.arange(3),
+        ["tracked", "tracked", "lost"],
+    )
+    assert record[0] == {
+        "proposed": 0,
+        "look": 0.6,
+        "refused": "look",
+        "detection": 2,
+        "by": "look",
+        "status": "tracked",
+    }
+    assert record[1]["refused"] is None and record[1]["by"] == "gap matcher"
+    assert record[2]["refused"] == "size" and record[2]["detection"] is None
+    assert record[2]["look"] is None and record[2]["status"] == "lost"
 
 
 def test_a_refused_target_without_a_clear_look_is_left_to_be_lost() -> None:
