@@ -289,15 +289,20 @@ class _WithdrawingTracker(KalmanTracker):
         return [(0, self.b)] if getattr(self, "due", False) else []
 
 
-def test_withdrawn_reports_are_taken_back_and_not_filled_in(points_video, pipeline_file) -> None:
-    module = ModuleType("withdrawing_plugin")
+def _registry_with_tracker(tracker: type[KalmanTracker]) -> Registry:
+    """The built-in registry plus ``tracker``, registered as a one-file plugin would be."""
+    module = ModuleType(f"{tracker.name}_plugin")
 
     @hookimpl
     def trackfw_register_stages(registry: Registry) -> None:
-        registry.add_tracker(_WithdrawingTracker)
+        registry.add_tracker(tracker)
 
     module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
-    registry = load_registry(extra_modules=[("withdrawing", module)])
+    return load_registry(extra_modules=[(tracker.name, module)])
+
+
+def test_withdrawn_reports_are_taken_back_and_not_filled_in(points_video, pipeline_file) -> None:
+    registry = _registry_with_tracker(_WithdrawingTracker)
     video = points_video(n_frames=100, intervals=[(40, 50)])
     text = pipeline_file().read_text().replace("{type: kalman,", "{type: withdrawing,")
     text += "engine: {fill_missing_s: 1.0, fill_after_b_s: 1.0}\n"
@@ -326,14 +331,7 @@ class _RecordingTracker(KalmanTracker):
 def test_the_trackers_check_at_b_is_recorded_by_target_id(
     points_video, pipeline_file, tmp_path: Path
 ) -> None:
-    module = ModuleType("recording_plugin")
-
-    @hookimpl
-    def trackfw_register_stages(registry: Registry) -> None:
-        registry.add_tracker(_RecordingTracker)
-
-    module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
-    registry = load_registry(extra_modules=[("recording", module)])
+    registry = _registry_with_tracker(_RecordingTracker)
     video = points_video(n_frames=100, intervals=[(40, 60)])
     text = pipeline_file().read_text().replace("{type: kalman,", "{type: recording,")
     run, pipeline = _run(video, pipeline_file(text, "recording.yaml"), registry=registry)

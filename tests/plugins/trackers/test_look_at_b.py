@@ -31,6 +31,13 @@ def _detections() -> Detections:
     return Detections.from_points(np.array([[100.0, 100.0], [200.0, 100.0], [300.0, 100.0]]))
 
 
+def _three_targets() -> tuple[_Looks, Lifecycle, AppearanceSettings]:
+    """Three targets' looks at :func:`_detections` (rows: targets), their lifecycle, the limits."""
+    looks = _Looks([[0.6, 0.5, 0.1], [0.9, 0.2, 0.8], [0.7, 0.7, 0.7]])
+    life = Lifecycle.start(LifecycleSettings(), VIDEO, 0, np.zeros((3, 2)))
+    return looks, life, AppearanceSettings(gap_max_distance=0.4, anywhere_max_distance=0.4)
+
+
 def test_detection_rows_follow_the_detection_index() -> None:
     detections = _detections()
     assert detection_rows_of(np.array([2, -1, 0]), detections).tolist() == [2, -1, 0]
@@ -41,9 +48,7 @@ def test_detection_rows_follow_the_detection_index() -> None:
 def test_a_match_that_looks_like_someone_else_is_refused_and_rematched_by_look() -> None:
     # Target 0 was matched to detection 0 but looks far from it (0.6) and near detection 2 (0.1);
     # target 1 keeps its match (0.2). A lost target 2 looks like nothing in the frame.
-    looks = _Looks([[0.6, 0.5, 0.1], [0.9, 0.2, 0.8], [0.7, 0.7, 0.7]])
-    life = Lifecycle.start(LifecycleSettings(), VIDEO, 0, np.zeros((3, 2)))
-    settings = AppearanceSettings(gap_max_distance=0.4, anywhere_max_distance=0.4)
+    looks, life, settings = _three_targets()
     matched = np.array([0, 1, -1])
     rows = matched.copy()
     positions = np.array([[100.0, 100.0], [200.0, 100.0], [0.0, 0.0]])
@@ -67,9 +72,7 @@ def test_a_match_that_looks_like_someone_else_is_refused_and_rematched_by_look()
 def test_the_check_at_b_is_recorded_with_its_looks_and_reasons() -> None:
     # The case above, recorded: target 0's match refused by look (0.6) and re-matched by look,
     # target 1's kept (0.2), target 2's (refused by size before the look) left without one.
-    looks = _Looks([[0.6, 0.5, 0.1], [0.9, 0.2, 0.8], [0.7, 0.7, 0.7]])
-    life = Lifecycle.start(LifecycleSettings(), VIDEO, 0, np.zeros((3, 2)))
-    settings = AppearanceSettings(gap_max_distance=0.4, anywhere_max_distance=0.4)
+    looks, life, settings = _three_targets()
     proposed = np.array([0, 1, 2])
     matched = np.array([0, 1, -1])
     checked = np.full(3, np.nan)
