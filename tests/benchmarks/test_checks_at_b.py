@@ -1,0 +1,78 @@
+"""benchmarks/checks_at_b.py: the gap matcher's proposals and the tracker's check at b, judged."""
+
+from __future__ import annotations
+
+import doctest
+import importlib.util
+import json
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+from trackfw.dataset import load_video, write_meta
+from trackfw.errors import UserError
+from trackfw.formats.annotations import write_annotations
+from trackfw.formats.run import FRAMES_FILE, GAPS_FILE, TRACKS_FILE, frames_header
+from trackfw.records import Interval
+
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "checks_at_b.py"
+
+
+def _script() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("checks_at_b", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["checks_at_b"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def _video(root: Path, at_b: dict[str, dict[str, object]]) -> tuple[Path, Path]:
+    """Targets 1 (x=100) and 2 (x=300) and a bystander (x=500) on frames 0-5, an interval a=2,
+    b=4; frame b's detections are at x = 100, 500, 300 (stable indices 0, 1, 2)."""
+    video, run = root / "dataset" / "v", root / "runs" / "v"
+    video.mkdir(parents=True)
+    run.mkdir(parents=True)
+    truth = {t: {1: (100.0, 50.0), 2: (300.0, 50.0)} for t in (0, 1, 2, 4, 5)}
+    heads = [(t, k, x, y, 20.0) for t, points in truth.items() for k, (x, y) in points.items()]
+    heads += [(t, 9, 500.0, 50.0, 20.0) for t in truth]
+    write_annotations(video, truth, heads, [Interval(a=2, b=4)])
+    write_meta(video / "meta.json", {"n_frames": 6, "width": 640, "height": 480, "fps": 25})
+    (run / TRACKS_FILE).write_text("", encoding="utf-8")
+    rows = [",".join(frames_header())]
+    for t in range(6):
+        points = "100 50;500 50;300 50" if t == 4 else ""
+        count = 3 if t == 4 else 0
+        rows.append(f"{t + 1},ok,0.1,{int(t == 3)},{count},{points},,2,0,0,0,1,1,1,")
+    (run / FRAMES_FILE).write_text("\n".join(rows) + "\n", encoding="utf-8")
+    gaps = [{"a": 3, "b": 5, "resolved": True, "at_b": at_b}]
+    (run / GAPS_FILE).write_text(json.dumps(gaps), encoding="utf-8")
+    return video, run
+
+
+def test_each_check_at_b_is_judged_before_and_after(tmp_path: Path) -> None:
+    at_b = {
+        "1": {"proposed": 0, "refused": None, "detection": 0},  # kept, right
+        "2": {"proposed": 1, "refused": "look", "detection": 2},  # the bystander's, then its own
+        "3": {"proposed": None, "refused": None, "detection": 1},  # not in view, found someone
+    }
+    video, run = _video(tmp_path, at_b)
+    counts = _script().video_checks(load_video(video), run, near=22.0)
+    assert dict(counts) == {
+        ("kept", "right", "right"): 1,
+        ("look", "wrong", "right"): 1,
+        ("kept", "none, out of view", "absent"): 1,
+    }
+
+
+def test_a_detection_that_frame_b_does_not_list_is_a_clear_error(tmp_path: Path) -> None:
+    video, run = _video(tmp_path, {"1": {"proposed": 7, "refused": None, "detection": 7}})
+    with pytest.raises(UserError, match="names detection 7 on frame b"):
+        _script().video_checks(load_video(video), run, near=22.0)
+
+
+def test_the_scripts_examples_hold() -> None:
+    result = doctest.testmod(_script())
+    assert result.failed == 0 and result.attempted > 0
