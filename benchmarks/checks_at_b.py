@@ -27,11 +27,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from error_breakdown import run_against_truth
 
 from trackfw.arrays import FloatArray
 from trackfw.dataset import list_videos, load_video
 from trackfw.errors import UserError
-from trackfw.formats.run import read_run
 from trackfw.records import VideoContext
 
 VERDICTS = ("right", "wrong", "absent", "none, in view", "none, out of view")
@@ -72,13 +72,7 @@ def judge(
 
 def video_checks(video: VideoContext, run_video: Path, near: float) -> Counter[tuple[str, ...]]:
     """Counts of ``(reason, proposal verdict, final verdict)`` over one video's checks at b."""
-    truth = video.ground_truth
-    if truth is None or not truth.targets:
-        raise UserError(
-            f"{video.path}: no ground truth; expected gt.csv with the people of interest."
-        )
-    run = read_run(run_video, video.n_frames)
-    detections = dict(zip(run.frames.frames.tolist(), run.frames.detections, strict=True))
+    truth, run, detections = run_against_truth(video, run_video)
     counts: Counter[tuple[str, ...]] = Counter()
     for gap in run.gaps or []:
         if not gap.get("at_b") or gap.get("b") is None:

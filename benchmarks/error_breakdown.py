@@ -52,8 +52,8 @@ import numpy as np
 from trackfw.arrays import FloatArray, IntArray
 from trackfw.dataset import POSES_FILE, list_videos, load_video
 from trackfw.errors import UserError
-from trackfw.formats.run import read_run
-from trackfw.records import Interval, VideoContext
+from trackfw.formats.run import RunRecord, read_run
+from trackfw.records import GroundTruth, Interval, VideoContext
 from trackfw_plugins.datasets.wear_camera import CameraPose, pose_homography, transform_points
 from trackfw_plugins.datasets.wear_render import GENERATOR as WEAR_GENERATOR
 from trackfw_plugins.evaluation.capture import bystander_heads, on_heads
@@ -149,18 +149,26 @@ def video_breakdown(
     return Counter(video_kinds(video, run_video, dist, near, after).values())
 
 
-def video_kinds(
-    video: VideoContext, run_video: Path, dist: float, near: float, after: int
-) -> dict[tuple[int, int], tuple[str, str]]:
-    """``(kind, phase)`` of each ``(frame, target)`` of one video that is in the ground truth or
-    reported."""
+def run_against_truth(
+    video: VideoContext, run_video: Path
+) -> tuple[GroundTruth, RunRecord, dict[int, FloatArray]]:
+    """The video's ground truth (an error without gt.csv targets), its run, and each frame's
+    ``(N, 2)`` detections from frames.csv (stable index order)."""
     truth = video.ground_truth
     if truth is None or not truth.targets:
         raise UserError(
             f"{video.path}: no ground truth; expected gt.csv with the people of interest."
         )
     run = read_run(run_video, video.n_frames)
-    detections = dict(zip(run.frames.frames.tolist(), run.frames.detections, strict=True))
+    return truth, run, dict(zip(run.frames.frames.tolist(), run.frames.detections, strict=True))
+
+
+def video_kinds(
+    video: VideoContext, run_video: Path, dist: float, near: float, after: int
+) -> dict[tuple[int, int], tuple[str, str]]:
+    """``(kind, phase)`` of each ``(frame, target)`` of one video that is in the ground truth or
+    reported."""
+    truth, run, detections = run_against_truth(video, run_video)
     ids = sorted({target for frame in truth.targets.values() for target in frame})
     kinds: dict[tuple[int, int], tuple[str, str]] = {}
     for frame in sorted(set(truth.targets) | set(run.tracks)):

@@ -133,32 +133,29 @@ def gaps_data(run: VideoRun) -> list[dict[str, Any]]:
     """gaps.json content: frames are 1-based like every other file."""
     entries = []
     for gap in run.gaps:
-        entries.append(
-            {
-                "a": gap.interval.a + 1,
-                "b": gap.interval.b + 1 if gap.resolved else None,
-                "horizon": gap.interval.horizon,
-                "resolved": gap.resolved,
-                "chosen": gap.chosen,
-                "cost": gap.cost,
-                "matches": {
-                    str(target_id): detection
-                    for target_id, detection in zip(
-                        gap.target_ids, gap.matched_detection, strict=False
-                    )
-                },
-                "positions": {
-                    str(target_id): position
-                    for target_id, position in zip(gap.target_ids, gap.positions, strict=False)
-                },
-                "milliseconds": round(gap.milliseconds, 3),
-                "diagnostics": gap.diagnostics,
-            }
-        )
+        entry: dict[str, Any] = {
+            "a": gap.interval.a + 1,
+            "b": gap.interval.b + 1 if gap.resolved else None,
+            "horizon": gap.interval.horizon,
+            "resolved": gap.resolved,
+            "chosen": gap.chosen,
+            "cost": gap.cost,
+            "matches": {
+                str(target_id): detection
+                for target_id, detection in zip(gap.target_ids, gap.matched_detection, strict=False)
+            },
+            "positions": {
+                str(target_id): position
+                for target_id, position in zip(gap.target_ids, gap.positions, strict=False)
+            },
+            "milliseconds": round(gap.milliseconds, 3),
+            "diagnostics": gap.diagnostics,
+        }
         if gap.at_b:
-            entries[-1]["at_b"] = {
+            entry["at_b"] = {
                 str(target_id): outcome for target_id, outcome in sorted(gap.at_b.items())
             }
+        entries.append(entry)
     return entries
 
 

@@ -252,15 +252,26 @@ def expected_size_mismatch(
     return np.nan_to_num(ratio, nan=0.0) > np.log(ratio_max)
 
 
+def _growing_gates(
+    life: Lifecycle, t: int, rows: IntArray, growth_at_1080: float, largest_at_1080: float
+) -> FloatArray:
+    """``(M,)`` gates in pixels: the re-acquisition gate grown by ``growth_at_1080`` px per
+    second lost, at most ``largest_at_1080`` (both at 1080p)."""
+    seconds = np.maximum((t - life.last_matched[rows]) / life.fps, 0.0)
+    gate = life.settings.reacquire_gate_px_at_1080 + growth_at_1080 * seconds
+    return np.minimum(gate, largest_at_1080) * life.scale
+
+
 def reacquire_gates(life: Lifecycle, t: int, rows: IntArray) -> FloatArray:
     """``(M,)`` re-acquisition gates in pixels, growing with the seconds lost."""
     settings = life.settings
-    seconds = (t - life.last_matched[rows]) / life.fps
-    gate = (
-        settings.reacquire_gate_px_at_1080
-        + settings.reacquire_growth_px_per_s_at_1080 * np.maximum(seconds, 0.0)
+    return _growing_gates(
+        life,
+        t,
+        rows,
+        settings.reacquire_growth_px_per_s_at_1080,
+        settings.reacquire_max_px_at_1080,
     )
-    return np.minimum(gate, settings.reacquire_max_px_at_1080) * life.scale
 
 
 def reacquire_cost(
@@ -323,15 +334,17 @@ def reentry_cost(
     settings = life.settings
     if settings.reentry_margin_px_at_1080 is None:
         return np.full((len(rows), len(points)), np.inf)
-    seconds = np.maximum((t - life.last_matched[rows]) / life.fps, 0.0)
-    gates = np.minimum(
-        settings.reacquire_gate_px_at_1080 + settings.reentry_growth_px_per_s_at_1080 * seconds,
+    gates = _growing_gates(
+        life,
+        t,
+        rows,
+        settings.reentry_growth_px_per_s_at_1080,
         settings.reentry_max_px_at_1080,
     )
     return border_return_cost(
         life.exit_side[rows],
         expected,
-        gates * life.scale,
+        gates,
         points,
         settings.reentry_margin_px_at_1080 * life.scale,
         life.width,

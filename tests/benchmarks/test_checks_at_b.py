@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import doctest
-import importlib.util
 import json
-import sys
 from pathlib import Path
 from types import ModuleType
 
@@ -17,16 +15,11 @@ from trackfw.formats.annotations import write_annotations
 from trackfw.formats.run import FRAMES_FILE, GAPS_FILE, TRACKS_FILE, frames_header
 from trackfw.records import Interval
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "checks_at_b.py"
+from .conftest import load_script
 
 
 def _script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("checks_at_b", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["checks_at_b"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_script("checks_at_b")
 
 
 def _video(root: Path, at_b: dict[str, dict[str, object]]) -> tuple[Path, Path]:

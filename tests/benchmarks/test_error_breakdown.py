@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import doctest
-import importlib.util
-import sys
 from pathlib import Path
 from types import ModuleType
 
@@ -13,16 +11,11 @@ from trackfw.formats.annotations import write_annotations
 from trackfw.formats.run import FRAMES_FILE, TRACKS_FILE, frames_header
 from trackfw.records import Interval
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "error_breakdown.py"
+from .conftest import load_script
 
 
 def _script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("error_breakdown", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["error_breakdown"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_script("error_breakdown")
 
 
 def _video(root: Path, cover: bool = False) -> tuple[Path, Path]:
