@@ -9,15 +9,20 @@ the target with it) goes along. A few frames later the two heads come apart and 
 head is detected beside its given point, where the bystander tracks
 (:mod:`.bystanders`) pick it up as somebody else.
 
+The box may also be the target's on the first frames and slide onto the passer-by as the two
+heads come apart (the passer-by's head is the larger, so the detector keeps its box), leaving the
+target's own head to be detected alone a few frames later.
+
 This check watches the first half second. A bystander track born after the start and seen on
 every frame since is traced back to the start frame along its own walk (constant velocity). When
 that path passes the given point much nearer than the detection the target took on its first
-step, and within half the new head's side, the target and that track trade places: the target
-goes on from the new head, the bystander track from the box, the target's look and size are
-learnt afresh, and its reports since the start are withdrawn
+step, or than the target now lies from it, and within half the new head's side, the target and
+that track trade places: the target goes on from the new head, the bystander track from the box,
+the target's look and size are learnt afresh, and its reports since the start are withdrawn
 (:meth:`trackfw.stages.Tracker.withdrawn`). The trace back keeps a walking target given in front
-of a stander on its own box: the stander's path leads back to where the stander stood, and that
-is further from the given point than the walker's first box was. Near the image border neither
+of a stander on its own box: the stander's path leads back to where the stander stood, a head
+apart from the given point (more than half the new head's side), however far the walker has
+gone since. Near the image border neither
 clue holds: a head cut by the border gets a box whose head point lies far from the given point,
 and a head that appears there is somebody walking in. So a target given within its first box's
 side of the border never trades, and a track whose first detection lay within its box's side of
@@ -59,7 +64,7 @@ class StartSplitSettings(FiniteModel):
         gt=0.0,
         le=1.0,
         description="the traced-back path must pass the given point this many times nearer"
-        " than the target's detection on its first step lay",
+        " than the target's detection on its first step, or the target now, lies from it",
     )
     back_sides: float = Field(
         0.5,
@@ -203,9 +208,12 @@ class StartSplit:
         )
         off = distance_matrix(self.given[targets], start_points)
         drifted = np.hypot(*(positions - self.given[targets]).T)
+        # A box placed on the passer-by lay off the given point on the first step; a box that
+        # was the target's first and slid onto the passer-by has taken the target off it since.
+        away = np.maximum(self.first_error[targets], drifted)
         here = distance_matrix(self.given[targets], now)
         near = (
-            (off < self.settings.back_ratio * self.first_error[targets][:, None])
+            (off < self.settings.back_ratio * away[:, None])
             & (off < self.settings.back_sides * sides[columns][None, :])
             & (here < drifted[:, None])
         )
