@@ -431,4 +431,7 @@ def print_differences(changed: list[Stretch], against: Path, phase: str | None) 
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except UserError as error:
+        raise SystemExit(str(error)) from None

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import doctest
+import subprocess
+import sys
 from pathlib import Path
 from types import ModuleType
 
@@ -11,7 +13,7 @@ from trackfw.formats.annotations import write_annotations
 from trackfw.formats.run import FRAMES_FILE, TRACKS_FILE, frames_header
 from trackfw.records import Interval
 
-from .conftest import load_script
+from .conftest import BENCHMARKS, load_script
 
 
 def _script() -> ModuleType:
@@ -131,3 +133,20 @@ def test_reports_after_leaving_are_split_by_where_the_target_left(tmp_path: Path
 def test_the_small_maths_examples_hold() -> None:
     result = doctest.testmod(_script())
     assert result.attempted > 0 and result.failed == 0
+
+
+def test_a_runs_folder_without_the_video_is_one_sentence(tmp_path: Path) -> None:
+    video, _ = _video(tmp_path)
+    missing = tmp_path / "no-such-runs"
+    script = str(BENCHMARKS / "error_breakdown.py")
+    command = [sys.executable, script, "--dataset", str(video.parent), "--runs", str(missing)]
+    result = subprocess.run(
+        command,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert result.returncode == 1
+    assert "Traceback" not in result.stderr
+    assert result.stderr.strip().startswith(str(missing / "v"))
+    assert "expected a folder with tracks.txt and frames.csv" in result.stderr
