@@ -35,6 +35,10 @@ target's annotation last stood: within ``--edge`` pixels of the image's border, 
 the source frame inside the image (a ``trackfw dataset wear`` video, whose virtual camera shows a
 blurred continuation where the real frame does not reach, and whose people vanish at that
 edge), or elsewhere (hidden behind someone, or an annotation that stops).
+
+With ``--stretches KIND [KIND ...]`` it lists each stretch of at least ``--min-frames``
+consecutive frames on which a target falls into a kind that starts with one of those words
+(``far`` lists every ``far, ...`` kind), video by video: where a set's score is lost.
 """
 
 from __future__ import annotations
@@ -234,6 +238,31 @@ def differences(
     return stretches
 
 
+def stretches_of(
+    name: str,
+    kinds: dict[tuple[int, int], tuple[str, str]],
+    words: list[str],
+    min_frames: int,
+) -> list[Stretch]:
+    """Stretches of at least ``min_frames`` frames on which one target of video ``name`` falls
+    into a kind that starts with one of ``words`` (the second kind of each is
+    :data:`NEITHER`), target by target, frames 0-based.
+
+    >>> kinds = {(f, 1): ("far, on a bystander", "segment") for f in range(2, 6)}
+    >>> kinds[6, 1] = ("right", "segment")
+    >>> stretches_of("v", kinds, ["far"], 3)
+    [('v', 1, 2, 5, 'far, on a bystander', 'not in view, not reported')]
+    >>> stretches_of("v", kinds, ["missed"], 1)
+    []
+    """
+    return [
+        stretch
+        for stretch in differences(name, kinds, {}, None)
+        if stretch[3] - stretch[2] + 1 >= min_frames
+        and any(stretch[4].startswith(word) for word in words)
+    ]
+
+
 def _kind(
     target: int,
     truth_ids: IntArray,
@@ -379,14 +408,26 @@ def main() -> None:
     parser.add_argument(
         "--edge", type=float, default=30.0, help="with --exits: 'edge' distance in pixels"
     )
+    parser.add_argument(
+        "--stretches",
+        nargs="+",
+        metavar="KIND",
+        help="list the stretches of the kinds that start with these words",
+    )
+    parser.add_argument(
+        "--min-frames", type=int, default=3, help="with --stretches: the shortest stretch listed"
+    )
     args = parser.parse_args()
     counts: Counter[tuple[str, str]] = Counter()
     exits: Counter[tuple[str, str]] = Counter()
     changed: list[Stretch] = []
+    listed: list[Stretch] = []
     videos = [load_video(path) for path in list_videos(args.dataset)]
     for video in videos:
         kinds = video_kinds(video, args.runs / video.name, args.dist, args.near, args.after)
         counts += Counter(kinds.values())
+        if args.stretches:
+            listed += stretches_of(video.name, kinds, args.stretches, args.min_frames)
         if args.exits:
             exits += video_exits(video, kinds, args.edge)
         if args.against is not None:
@@ -416,6 +457,12 @@ def main() -> None:
         print_exits(exits)
     if args.against is not None:
         print_differences(changed, args.against, args.phase)
+    if args.stretches:
+        print(f"\nstretches of {', '.join(args.stretches)} (at least {args.min_frames} frames):")
+        for name, target, first, last, kind, _ in listed:
+            print(
+                f"  {name} target {target} frames {first + 1}-{last + 1} ({last - first + 1}): {kind}"
+            )
 
 
 def print_differences(changed: list[Stretch], against: Path, phase: str | None) -> None:

@@ -150,3 +150,26 @@ def test_a_runs_folder_without_the_video_is_one_sentence(tmp_path: Path) -> None
     assert "Traceback" not in result.stderr
     assert result.stderr.strip().startswith(str(missing / "v"))
     assert "expected a folder with tracks.txt and frames.csv" in result.stderr
+
+
+def test_the_stretches_of_a_kind_are_listed_from_the_command_line(tmp_path: Path) -> None:
+    video, run = _video(tmp_path)
+    script = str(BENCHMARKS / "error_breakdown.py")
+    command = [sys.executable, script, "--dataset", str(video.parent), "--runs", str(run.parent)]
+    listed = subprocess.run(
+        [*command, "--stretches", "far", "--min-frames", "1"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split("stretches of far")[1]
+    # Target 1 on target 2's head on frame 2 (1-based 3), on the bystander on frame 4 (5).
+    assert "v target 1 frames 3-3 (1): far, on a target" in listed
+    assert "v target 1 frames 5-5 (1): far, on a bystander" in listed
+    assert "missed" not in listed
+    longer = subprocess.run(
+        [*command, "--stretches", "far", "--min-frames", "2"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split("stretches of far")[1]
+    assert "target" not in longer
