@@ -385,7 +385,8 @@ def print_exits(counts: Counter[tuple[str, str]]) -> None:
             print(f"{kind:30s}" + "".join(f"{counts[kind, name]:14d}" for name in EXITS))
 
 
-def main() -> None:
+def parse_arguments() -> argparse.Namespace:
+    """The command line's options."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument(
         "--dataset", type=Path, required=True, help="dataset folder (gt.csv per video)"
@@ -417,7 +418,11 @@ def main() -> None:
     parser.add_argument(
         "--min-frames", type=int, default=3, help="with --stretches: the shortest stretch listed"
     )
-    args = parser.parse_args()
+    return parser.parse_args()
+
+
+def main() -> None:
+    args = parse_arguments()
     counts: Counter[tuple[str, str]] = Counter()
     exits: Counter[tuple[str, str]] = Counter()
     changed: list[Stretch] = []
