@@ -16,13 +16,13 @@ target's own head to be detected alone a few frames later.
 This check watches the first half second. A bystander track born after the start and seen on
 every frame since is traced back to the start frame along its own walk (constant velocity). When
 that path passes the given point much nearer than the detection the target took on its first
-step, or than the target now lies from it, and within half the new head's side, the target and
-that track trade places: the target goes on from the new head, the bystander track from the box,
+step, or than the target now lies from it, and within half a head side (the new head's box, or
+the target's first box when that is larger: a head coming free of the passer-by has a small,
+shifted box), the target and that track trade places: the target goes on from the new head, the bystander track from the box,
 the target's look and size are learnt afresh, and its reports since the start are withdrawn
 (:meth:`trackfw.stages.Tracker.withdrawn`). The trace back keeps a walking target given in front
 of a stander on its own box: the stander's path leads back to where the stander stood, a head
-apart from the given point (more than half the new head's side), however far the walker has
-gone since. Near the image border neither
+apart from the given point (more than half a side), however far the walker has gone since. Near the image border neither
 clue holds: a head cut by the border gets a box whose head point lies far from the given point,
 and a head that appears there is somebody walking in. So a target given within its first box's
 side of the border never trades, and a track whose first detection lay within its box's side of
@@ -69,7 +69,8 @@ class StartSplitSettings(FiniteModel):
     back_sides: float = Field(
         0.5,
         gt=0.0,
-        description="and within this many of the new head's box sides",
+        description="and within this many head sides: the new head's box side, or the"
+        " target's first box side when that is larger",
     )
 
 
@@ -121,6 +122,7 @@ class StartSplit:
     within: int
     follow: int
     first_error: FloatArray = field(default_factory=lambda: np.zeros(0))
+    first_side: FloatArray = field(default_factory=lambda: np.zeros(0))
     open: BoolArray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     stepped: bool = False
     withdrawn: list[tuple[int, int]] = field(default_factory=list)
@@ -150,6 +152,7 @@ class StartSplit:
             within=max(1, round(settings.within_s * fps)),
             follow=max(1, round(settings.follow_s * fps)),
             first_error=np.full(count, np.inf),
+            first_side=np.zeros(count),
             open=np.ones(count, dtype=bool),
         )
 
@@ -161,6 +164,7 @@ class StartSplit:
             return
         self.stepped = True
         self.first_error[targets] = np.hypot(*(points - self.given[targets]).T)
+        self.first_side[targets] = np.nan_to_num(sides, nan=0.0)
         cut, _ = near_edge(self.given[targets], *self.size, np.nan_to_num(sides, nan=0.0))
         self.open[targets[cut]] = False
 
@@ -214,7 +218,11 @@ class StartSplit:
         here = distance_matrix(self.given[targets], now)
         near = (
             (off < self.settings.back_ratio * away[:, None])
-            & (off < self.settings.back_sides * sides[columns][None, :])
+            & (
+                off
+                < self.settings.back_sides
+                * np.maximum(sides[columns][None, :], self.first_side[targets][:, None])
+            )
             & (here < drifted[:, None])
         )
         if not near.any():

@@ -19,9 +19,10 @@ STANDER = np.array([100.0, 120.0])
 WALKER_START, WALKER_SPEED = np.array([114.0, 120.0]), np.array([4.0, 0.0])
 
 
-def _detections(points: list[np.ndarray]) -> Detections:
+def _detections(points: list[np.ndarray], sides: list[float] | None = None) -> Detections:
     array = np.array(points, dtype=np.float64).reshape(-1, 2)
-    boxes = np.column_stack([array - SIDE / 2, np.full((len(array), 2), SIDE)])
+    side = np.full(len(array), SIDE) if sides is None else np.array(sides, dtype=np.float64)
+    boxes = np.column_stack([array - side[:, None] / 2, side, side])
     return Detections.from_points(array, boxes=boxes)
 
 
@@ -67,38 +68,52 @@ def test_a_passer_by_given_on_its_own_box_keeps_it() -> None:
     assert withdrawn == []
 
 
-def _sliding(t: int) -> Detections:
+def _sliding(t: int, offset: np.ndarray, own_side: float) -> Detections:
     """The box is the stander's on the first step, slides onto the passer-by walking out of it
-    over the next frames, and from frame 5 the stander's own head is found a little off its
-    given point."""
+    over the next frames, and from frame 5 the stander's own head (box side ``own_side``) is
+    found ``offset`` from its given point."""
     walker = WALKER_START + WALKER_SPEED * t
     if t >= 5:
-        return _detections([walker, STANDER + np.array([4.0, 2.0])])
+        return _detections([walker, STANDER + offset], [SIDE, own_side])
     share = (0.05, 0.2, 0.45, 0.75)[t - 1]
     return _detections([STANDER + share * (walker - STANDER)])
+
+
+def _run_sliding(offset: np.ndarray, own_side: float, split: bool) -> tuple[np.ndarray, list]:
+    params: dict[str, object] = {"bystanders": {}, "start_gate_px_at_1080": 100.0}
+    if split:
+        params["start_split"] = {}
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    tracker.initialise(0, np.array([3]), STANDER[None, :])
+    withdrawn = []
+    for t in range(1, 14):
+        tracker.step(t, _sliding(t, offset, own_side))
+        withdrawn += tracker.withdrawn()
+    return tracker.positions()[0], withdrawn
 
 
 def test_a_stander_whose_box_slid_onto_the_passer_by_takes_its_own_head() -> None:
     # Its first box lay 1 px from the given point, nearer than its own head now does: what
     # tells is that the track has walked off the given point while the new head leads back.
-    params: dict[str, object] = {"bystanders": {}, "start_gate_px_at_1080": 100.0}
-    positions = []
-    for split in (True, False):
-        if split:
-            params["start_split"] = {}
-        else:
-            params.pop("start_split", None)
-        tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
-        tracker.start(VIDEO)
-        tracker.initialise(0, np.array([3]), STANDER[None, :])
-        withdrawn = []
-        for t in range(1, 14):
-            tracker.step(t, _sliding(t))
-            withdrawn += tracker.withdrawn()
-        positions.append(tracker.positions()[0])
-        assert withdrawn == ([(0, 1)] if split else [])
-    assert np.hypot(*(positions[0] - STANDER)) < 6.0
-    assert positions[1][0] > 130.0  # without the check it went with the passer-by
+    offset = np.array([4.0, 2.0])
+    position, withdrawn = _run_sliding(offset, SIDE, split=True)
+    assert np.hypot(*(position - STANDER)) < 6.0
+    assert withdrawn == [(0, 1)]
+    position, withdrawn = _run_sliding(offset, SIDE, split=False)
+    assert position[0] > 130.0  # without the check it went with the passer-by
+    assert withdrawn == []
+
+
+def test_a_half_hidden_head_is_measured_by_the_targets_first_box() -> None:
+    # Coming free of the passer-by, the stander's box is small (10 px) and its head point 6 px
+    # off: more than half its own side, less than half the 16 px box the target started on.
+    position, withdrawn = _run_sliding(np.array([6.0, 0.0]), 10.0, split=True)
+    assert np.hypot(*(position - STANDER)) < 8.0
+    assert withdrawn == [(0, 1)]
+    # Twice as far off, beyond half of either side: no trade.
+    position, withdrawn = _run_sliding(np.array([12.0, 0.0]), 10.0, split=True)
+    assert withdrawn == []
 
 
 def _track_frames(tracks: Bystanders, frames: list[list[list[float]]]) -> np.ndarray:
