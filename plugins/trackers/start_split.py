@@ -18,15 +18,15 @@ every frame since is traced back to the start frame along its own walk (constant
 that path passes the given point much nearer than the detection the target took on its first
 step, or than the target now lies from it, and within half a head side (the new head's box, or
 the target's first box when that is larger: a head coming free of the passer-by has a small,
-shifted box), the target and that track trade places: the target goes on from the new head, the bystander track from the box,
-the target's look and size are learnt afresh, and its reports since the start are withdrawn
-(:meth:`trackfw.stages.Tracker.withdrawn`). The trace back keeps a walking target given in front
-of a stander on its own box: the stander's path leads back to where the stander stood, a head
-apart from the given point (more than half a side), however far the walker has gone since. Near the image border neither
-clue holds: a head cut by the border gets a box whose head point lies far from the given point,
-and a head that appears there is somebody walking in. So a target given within its first box's
-side of the border never trades, and a track whose first detection lay within its box's side of
-the border is never traded for.
+shifted box), the target and that track trade places: the target goes on from the new head, the
+bystander track from the box, the target's look and size are learnt afresh, and its reports since
+the start are withdrawn (:meth:`trackfw.stages.Tracker.withdrawn`). The trace back keeps a
+walking target given in front of a stander on its own box: the stander's path leads back to where
+the stander stood, a head apart from the given point (more than half a side), however far the
+walker has gone since. Near the image border neither clue holds: a head cut by the border gets
+a box whose head point lies far from the given point, and a head that appears there is somebody
+walking in. So a target given within its first box's side of the border never trades, and a
+track whose first detection lay within its box's side of the border is never traded for.
 """
 
 from __future__ import annotations
@@ -165,7 +165,7 @@ class StartSplit:
         self.stepped = True
         self.first_error[targets] = np.hypot(*(points - self.given[targets]).T)
         self.first_side[targets] = np.nan_to_num(sides, nan=0.0)
-        cut, _ = near_edge(self.given[targets], *self.size, np.nan_to_num(sides, nan=0.0))
+        cut, _ = near_edge(self.given[targets], *self.size, self.first_side[targets])
         self.open[targets[cut]] = False
 
     def due(
@@ -215,14 +215,12 @@ class StartSplit:
         # A box placed on the passer-by lay off the given point on the first step; a box that
         # was the target's first and slid onto the passer-by has taken the target off it since.
         away = np.maximum(self.first_error[targets], drifted)
+        # A head coming free of the passer-by has a small box whose head point lies off.
+        side = np.maximum(sides[columns][None, :], self.first_side[targets][:, None])
         here = distance_matrix(self.given[targets], now)
         near = (
             (off < self.settings.back_ratio * away[:, None])
-            & (
-                off
-                < self.settings.back_sides
-                * np.maximum(sides[columns][None, :], self.first_side[targets][:, None])
-            )
+            & (off < self.settings.back_sides * side)
             & (here < drifted[:, None])
         )
         if not near.any():

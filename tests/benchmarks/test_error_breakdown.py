@@ -135,17 +135,16 @@ def test_the_small_maths_examples_hold() -> None:
     assert result.attempted > 0 and result.failed == 0
 
 
+def _command_line(*arguments: str | Path, check: bool = True) -> subprocess.CompletedProcess[str]:
+    """The script run as a command, its output captured."""
+    command = [sys.executable, str(BENCHMARKS / "error_breakdown.py"), *map(str, arguments)]
+    return subprocess.run(command, capture_output=True, text=True, check=check)
+
+
 def test_a_runs_folder_without_the_video_is_one_sentence(tmp_path: Path) -> None:
     video, _ = _video(tmp_path)
     missing = tmp_path / "no-such-runs"
-    script = str(BENCHMARKS / "error_breakdown.py")
-    command = [sys.executable, script, "--dataset", str(video.parent), "--runs", str(missing)]
-    result = subprocess.run(
-        command,
-        capture_output=True,
-        text=True,
-        check=False,
-    )
+    result = _command_line("--dataset", video.parent, "--runs", missing, check=False)
     assert result.returncode == 1
     assert "Traceback" not in result.stderr
     assert result.stderr.strip().startswith(str(missing / "v"))
@@ -154,22 +153,12 @@ def test_a_runs_folder_without_the_video_is_one_sentence(tmp_path: Path) -> None
 
 def test_the_stretches_of_a_kind_are_listed_from_the_command_line(tmp_path: Path) -> None:
     video, run = _video(tmp_path)
-    script = str(BENCHMARKS / "error_breakdown.py")
-    command = [sys.executable, script, "--dataset", str(video.parent), "--runs", str(run.parent)]
-    listed = subprocess.run(
-        [*command, "--stretches", "far", "--min-frames", "1"],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.split("stretches of far")[1]
+    paths = ("--dataset", video.parent, "--runs", run.parent)
+    listed = _command_line(*paths, "--stretches", "far", "--min-frames", "1").stdout
+    listed = listed.split("stretches of far")[1]
     # Target 1 on target 2's head on frame 2 (1-based 3), on the bystander on frame 4 (5).
     assert "v target 1 frames 3-3 (1): far, on a target" in listed
     assert "v target 1 frames 5-5 (1): far, on a bystander" in listed
     assert "missed" not in listed
-    longer = subprocess.run(
-        [*command, "--stretches", "far", "--min-frames", "2"],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.split("stretches of far")[1]
-    assert "target" not in longer
+    longer = _command_line(*paths, "--stretches", "far", "--min-frames", "2").stdout
+    assert "target" not in longer.split("stretches of far")[1]

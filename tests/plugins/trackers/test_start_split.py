@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 
@@ -32,7 +34,14 @@ def _passing(t: int) -> Detections:
     return _detections([walker] if t < 3 else [walker, STANDER])
 
 
-def _run(given: np.ndarray, split: bool, frames: int = 12) -> tuple[np.ndarray, list]:
+def _run(
+    given: np.ndarray,
+    split: bool,
+    frames: int = 12,
+    detections: Callable[[int], Detections] = _passing,
+) -> tuple[np.ndarray, list]:
+    """The target given at ``given`` tracked through ``detections(t)`` for t = 1..frames-1;
+    its last position and the withdrawals."""
     params: dict[str, object] = {"bystanders": {}, "start_gate_px_at_1080": 100.0}
     if split:
         params["start_split"] = {}
@@ -41,7 +50,7 @@ def _run(given: np.ndarray, split: bool, frames: int = 12) -> tuple[np.ndarray, 
     tracker.initialise(0, np.array([3]), given[None, :])
     withdrawn = []
     for t in range(1, frames):
-        tracker.step(t, _passing(t))
+        tracker.step(t, detections(t))
         withdrawn += tracker.withdrawn()
     return tracker.positions()[0], withdrawn
 
@@ -80,17 +89,7 @@ def _sliding(t: int, offset: np.ndarray, own_side: float) -> Detections:
 
 
 def _run_sliding(offset: np.ndarray, own_side: float, split: bool) -> tuple[np.ndarray, list]:
-    params: dict[str, object] = {"bystanders": {}, "start_gate_px_at_1080": 100.0}
-    if split:
-        params["start_split"] = {}
-    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
-    tracker.start(VIDEO)
-    tracker.initialise(0, np.array([3]), STANDER[None, :])
-    withdrawn = []
-    for t in range(1, 14):
-        tracker.step(t, _sliding(t, offset, own_side))
-        withdrawn += tracker.withdrawn()
-    return tracker.positions()[0], withdrawn
+    return _run(STANDER, split, 14, lambda t: _sliding(t, offset, own_side))
 
 
 def test_a_stander_whose_box_slid_onto_the_passer_by_takes_its_own_head() -> None:
