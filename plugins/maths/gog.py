@@ -23,6 +23,7 @@ from typing import Any, cast
 
 import cv2
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import ArrayLike, NDArray
 from threadpoolctl import ThreadpoolController
 
@@ -61,7 +62,9 @@ def half_vectorise(matrices: FloatArray) -> FloatArray:
 def gaussian_embedding_log(means: FloatArray, covariances: FloatArray) -> FloatArray:
     """log of the SPD embedding |Σ|^{−1/(d+1)}·[[Σ + μμᵀ, μ], [μᵀ, 1]], half-vectorised.
 
-    The embedded matrix has determinant 1, so its log is log(P₀) − (log|Σ|/(d+1))·I.
+    One batched ``eigh`` of P₀ = [[Σ + μμᵀ, μ], [μᵀ, 1]] gives everything: |P₀| = |Σ| (the
+    Schur complement of its corner 1 is Σ), so the scaled matrix has determinant 1 and its log
+    is V·diag(log λ − mean(log λ))·Vᵀ, with no separate determinant.
 
     Args:
         means: ``(N, d)`` means.
@@ -80,23 +83,22 @@ def gaussian_embedding_log(means: FloatArray, covariances: FloatArray) -> FloatA
     embedded[:, :dimension, dimension] = means
     embedded[:, dimension, :dimension] = means
     embedded[:, dimension, dimension] = 1.0
-    _, log_determinant = np.linalg.slogdet(covariances)
     eigenvalues, eigenvectors = np.linalg.eigh(embedded)
-    eigenvalues = np.maximum(eigenvalues, np.finfo(np.float64).tiny)
-    logarithm = (eigenvectors * np.log(eigenvalues)[:, None, :]) @ eigenvectors.transpose(0, 2, 1)
-    logarithm -= (log_determinant / (dimension + 1))[:, None, None] * np.eye(dimension + 1)
+    logarithms = np.log(np.maximum(eigenvalues, np.finfo(np.float64).tiny))
+    logarithms -= logarithms.mean(axis=1, keepdims=True)
+    logarithm = (eigenvectors * logarithms[:, None, :]) @ eigenvectors.transpose(0, 2, 1)
     return half_vectorise(logarithm)
 
 
-def pixel_features(image_rgb: NDArray[np.uint8], colour_space: str = "rgb") -> FloatArray:
-    """Per-pixel features f = [y/H, M₀°, M₉₀°, M₁₈₀°, M₂₇₀°, colour] (step 1).
+def shape_features(image_rgb: NDArray[np.uint8]) -> FloatArray:
+    """The colour-independent features [y/H, M₀°, M₉₀°, M₁₈₀°, M₂₇₀°] (step 1), shared by the
+    four colour spaces.
 
     Args:
         image_rgb: ``(H, W, 3)`` uint8 RGB.
-        colour_space: ``"rgb"``, ``"lab"``, ``"hsv"`` (3 channels) or ``"nrng"`` (2 channels).
 
     Returns:
-        ``(H, W, d)`` features, d = 8 (or 7 for nRnG).
+        ``(H, W, 5)`` row position and soft-binned gradient magnitudes.
     """
     image = np.asarray(image_rgb)
     height, width = image.shape[:2]
@@ -113,34 +115,93 @@ def pixel_features(image_rgb: NDArray[np.uint8], colour_space: str = "rgb") -> F
     position = orientation / (360.0 / ORIENTATION_BINS)
     lower_bin = np.floor(position).astype(np.int64) % ORIENTATION_BINS
     upper_weight = position - np.floor(position)
-    orientation_channels = np.zeros((height, width, ORIENTATION_BINS))
-    rows, columns = np.indices((height, width))
-    orientation_channels[rows, columns, lower_bin] += magnitude * (1.0 - upper_weight)
-    orientation_channels[rows, columns, (lower_bin + 1) % ORIENTATION_BINS] += (
-        magnitude * upper_weight
+    # Each pixel's magnitude goes to its two neighbouring bins (never the same one): a select
+    # per bin instead of scattered adds, with the same values.
+    bins = np.arange(ORIENTATION_BINS)
+    lower_share = (magnitude * (1.0 - upper_weight))[..., None]
+    upper_share = (magnitude * upper_weight)[..., None]
+    orientation_channels = np.where(lower_bin[..., None] == bins, lower_share, 0.0) + np.where(
+        ((lower_bin + 1) % ORIENTATION_BINS)[..., None] == bins, upper_share, 0.0
     )
-
-    if colour_space == "rgb":
-        colour = values / 255.0
-    elif colour_space == "lab":
-        lab = cv2.cvtColor((values / 255.0).astype(np.float32), cv2.COLOR_RGB2Lab).astype(
-            np.float64
-        )
-        colour = np.stack(
-            [lab[..., 0] / 100.0, (lab[..., 1] + 50.0) / 100.0, (lab[..., 2] + 50.0) / 100.0],
-            axis=-1,
-        )
-    elif colour_space == "hsv":
-        colour = rgb_to_hsv(values / 255.0)
-    elif colour_space == "nrng":
-        total = np.maximum(values.sum(axis=-1, keepdims=True), 1.0)
-        colour = values[..., :2] / total
-    else:
-        raise ValueError(f"unknown GOG colour space {colour_space!r}; expected {COLOUR_SPACES}")
     row_feature = np.broadcast_to(
         (np.arange(1, height + 1, dtype=np.float64) / height)[:, None, None], (height, width, 1)
     )
-    return np.concatenate([row_feature, orientation_channels, colour], axis=-1)
+    return np.concatenate([row_feature, orientation_channels], axis=-1)
+
+
+def colour_features(image_rgb: NDArray[np.uint8], colour_space: str) -> FloatArray:
+    """The colour part of the pixel features (step 1).
+
+    Args:
+        image_rgb: ``(H, W, 3)`` uint8 RGB.
+        colour_space: ``"rgb"``, ``"lab"``, ``"hsv"`` (3 channels) or ``"nrng"`` (2 channels).
+
+    Returns:
+        ``(H, W, 3)``, or ``(H, W, 2)`` for nRnG, in [0, 1].
+    """
+    values = np.asarray(image_rgb).astype(np.float64)
+    if colour_space == "rgb":
+        return values / 255.0
+    if colour_space == "lab":
+        lab = cv2.cvtColor((values / 255.0).astype(np.float32), cv2.COLOR_RGB2Lab).astype(
+            np.float64
+        )
+        return np.stack(
+            [lab[..., 0] / 100.0, (lab[..., 1] + 50.0) / 100.0, (lab[..., 2] + 50.0) / 100.0],
+            axis=-1,
+        )
+    if colour_space == "hsv":
+        return rgb_to_hsv(values / 255.0)
+    if colour_space == "nrng":
+        total = np.maximum(values.sum(axis=-1, keepdims=True), 1.0)
+        return values[..., :2] / total
+    raise ValueError(f"unknown GOG colour space {colour_space!r}; expected {COLOUR_SPACES}")
+
+
+def pixel_features(image_rgb: NDArray[np.uint8], colour_space: str = "rgb") -> FloatArray:
+    """Per-pixel features f = [y/H, M₀°, M₉₀°, M₁₈₀°, M₂₇₀°, colour] (step 1).
+
+    Args:
+        image_rgb: ``(H, W, 3)`` uint8 RGB.
+        colour_space: ``"rgb"``, ``"lab"``, ``"hsv"`` (3 channels) or ``"nrng"`` (2 channels).
+
+    Returns:
+        ``(H, W, d)`` features, d = 8 (or 7 for nRnG).
+    """
+    colour = colour_features(image_rgb, colour_space)
+    return np.concatenate([shape_features(image_rgb), colour], axis=-1)
+
+
+def patch_moments(
+    features: FloatArray, patch_size: int = PATCH_SIZE, step: int = PATCH_STEP
+) -> FloatArray:
+    """Zeroth, first and second moments of every k×k patch, as one Gram matrix per patch.
+
+    The features get a leading channel of ones and a zero border of k//2 pixels (so a patch
+    clipped by the image edge sums only its pixels inside); the Gram matrix of a patch's
+    k² samples is then [[n, Σfᵀ], [Σf, Σffᵀ]]. One batched matrix product does it: cheaper
+    than running sums over the d(d+1)/2 product channels, and with no cancellation.
+
+    Args:
+        features: ``(H, W, d)`` pixel features.
+        patch_size: k (an even k counts as k + 1, as the authors' windows are centred).
+        step: p, the distance between patch centres.
+
+    Returns:
+        ``(H₀, W₀, d+1, d+1)`` Gram matrices on the ⌈H/p⌉ × ⌈W/p⌉ grid of patch centres.
+    """
+    height, width, dimension = features.shape
+    half = patch_size // 2
+    window = 2 * half + 1
+    augmented = np.zeros((height + 2 * half, width + 2 * half, dimension + 1))
+    augmented[half : half + height, half : half + width, 0] = 1.0
+    augmented[half : half + height, half : half + width, 1:] = features
+    windows = sliding_window_view(augmented, (window, window), axis=(0, 1))[::step, ::step]
+    grid_height, grid_width = windows.shape[:2]
+    # (patch, k² samples, d+1), channels innermost: the copy moves whole pixels at a time.
+    samples = windows.transpose(0, 1, 3, 4, 2).reshape(grid_height * grid_width, -1, dimension + 1)
+    gram = samples.transpose(0, 2, 1) @ samples
+    return gram.reshape(grid_height, grid_width, dimension + 1, dimension + 1)
 
 
 def patch_gaussians(
@@ -151,48 +212,35 @@ def patch_gaussians(
 ) -> FloatArray:
     """Patch-level Gaussians, embedded and half-vectorised (step 2).
 
-    Window sums of f and of the upper triangle of ffᵀ come from separable running sums (an
-    integral image evaluated only at the patch rows), so the cost does not grow with k.
-
     Args:
         features: ``(H, W, d)`` pixel features.
+        patch_size: k, the patch side.
+        step: p, the distance between patch centres.
+        epsilon: covariance regularisation, times the trace (at least 0.01).
 
     Returns:
         ``(H₀, W₀, m)`` patch vectors on the ⌈H/p⌉ × ⌈W/p⌉ grid, m = (d²+3d)/2 + 1.
     """
-    height, width, dimension = features.shape
-    upper_rows, upper_columns = np.triu_indices(dimension)
-    stacked = np.concatenate(
-        [
-            np.ones((height, width, 1)),
-            features,
-            features[..., upper_rows] * features[..., upper_columns],
-        ],
-        axis=-1,
-    )
-    half = patch_size // 2
-    centre_rows = np.arange(0, height, step)
-    centre_columns = np.arange(0, width, step)
-    top = np.clip(centre_rows - half, 0, height)
-    bottom = np.clip(centre_rows + half + 1, 0, height)
-    left = np.clip(centre_columns - half, 0, width)
-    right = np.clip(centre_columns + half + 1, 0, width)
-    running = np.zeros((height + 1, width, stacked.shape[-1]))
-    np.cumsum(stacked, axis=0, out=running[1:])
-    row_sums = running[bottom] - running[top]
-    running = np.zeros((len(centre_rows), width + 1, stacked.shape[-1]))
-    np.cumsum(row_sums, axis=1, out=running[:, 1:])
-    sums = (running[:, right] - running[:, left]).reshape(-1, stacked.shape[-1])
-    grid_shape = (len(centre_rows), len(centre_columns))
+    return gaussians_from_moments(patch_moments(features, patch_size, step), epsilon)
 
-    counts = sums[:, 0]
-    means = sums[:, 1 : 1 + dimension] / counts[:, None]
-    second = np.zeros((len(sums), dimension, dimension))
-    second[:, upper_rows, upper_columns] = sums[:, 1 + dimension :]
-    second[:, upper_columns, upper_rows] = sums[:, 1 + dimension :]
-    covariances = (second - counts[:, None, None] * means[:, :, None] * means[:, None, :]) / (
-        np.maximum(counts - 1.0, 1.0)[:, None, None]
-    )
+
+def gaussians_from_moments(gram: FloatArray, epsilon: float = EPSILON) -> FloatArray:
+    """Embedded, half-vectorised Gaussians of patches given by their :func:`patch_moments`.
+
+    Args:
+        gram: ``(H₀, W₀, d+1, d+1)`` Gram matrices [[n, Σfᵀ], [Σf, Σffᵀ]].
+        epsilon: covariance regularisation, times the trace (at least 0.01).
+
+    Returns:
+        ``(H₀, W₀, m)`` patch vectors, m = (d²+3d)/2 + 1.
+    """
+    grid_shape = gram.shape[:2]
+    dimension = gram.shape[-1] - 1
+    gram = gram.reshape(-1, dimension + 1, dimension + 1)
+    counts = gram[:, 0, 0]
+    means = gram[:, 0, 1:] / counts[:, None]
+    outer = counts[:, None, None] * means[:, :, None] * means[:, None, :]
+    covariances = (gram[:, 1:, 1:] - outer) / np.maximum(counts - 1.0, 1.0)[:, None, None]
     trace = np.trace(covariances, axis1=1, axis2=2)
     covariances += (epsilon * np.maximum(trace, 0.01))[:, None, None] * np.eye(dimension)
     vectors = gaussian_embedding_log(means, covariances)
@@ -212,6 +260,9 @@ def region_gaussians(
 
     Args:
         patch_vectors: ``(H₀, W₀, m)`` patch vectors.
+        num_regions: G, the number of strips.
+        epsilon: covariance regularisation, times the trace.
+        weighted: whether to weight the patch columns (else uniform weights).
 
     Returns:
         ``(G·((m²+3m)/2 + 1),)`` descriptor.
@@ -225,23 +276,22 @@ def region_gaussians(
         column_weights = np.exp(-((columns - grid_width / 2.0) ** 2) / (2.0 * sigma**2))
     else:
         column_weights = np.ones(grid_width)
-    means, covariances = [], []
-    for region in range(num_regions):
-        top = min(region * stride, max(grid_height - strip, 0))
-        block = patch_vectors[top : top + strip].reshape(-1, dimension)
-        weights = np.tile(column_weights, min(strip, grid_height - top))
-        weights = weights / weights.sum()
-        mean = weights @ block
-        centred = block - mean
-        covariance = (centred * weights[:, None]).T @ centred
-        covariance = 0.5 * (covariance + covariance.T)
-        covariance += epsilon * np.trace(covariance) * np.eye(dimension)
-        if np.trace(covariance) <= 0.0:
-            # A constant region (flat crop): keep the embedding defined.
-            covariance += epsilon * np.eye(dimension)
-        means.append(mean)
-        covariances.append(covariance)
-    return gaussian_embedding_log(np.array(means), np.array(covariances)).reshape(-1)
+    # strip ≤ H₀ for any G ≥ 1, so every strip has its full height and all G go through one
+    # batch of matrix products and one eigh.
+    tops = [min(region * stride, max(grid_height - strip, 0)) for region in range(num_regions)]
+    blocks = np.stack([patch_vectors[top : top + strip].reshape(-1, dimension) for top in tops])
+    weights = np.tile(column_weights, strip)
+    weights = weights / weights.sum()
+    means = weights @ blocks
+    centred = blocks - means[:, None, :]
+    covariances = (centred * weights[:, None]).transpose(0, 2, 1) @ centred
+    covariances = 0.5 * (covariances + covariances.transpose(0, 2, 1))
+    identity = np.eye(dimension)
+    covariances += epsilon * np.trace(covariances, axis1=1, axis2=2)[:, None, None] * identity
+    # A constant region (flat crop): keep the embedding defined.
+    flat = np.trace(covariances, axis1=1, axis2=2) <= 0.0
+    covariances[flat] += epsilon * identity
+    return gaussian_embedding_log(means, covariances).reshape(-1)
 
 
 @lru_cache(maxsize=1)
@@ -258,12 +308,27 @@ def single_threaded_blas() -> AbstractContextManager[Any]:
 def gog_colour_descriptor(image_rgb: NDArray[np.uint8], colour_space: str) -> FloatArray:
     """Raw GOG descriptor for one colour space: 7567 values (4921 for nRnG) on 128×48."""
     with single_threaded_blas():
-        return _colour_descriptor(image_rgb, colour_space)
+        return _crop_descriptor(image_rgb, (colour_space,))
 
 
-def _colour_descriptor(image_rgb: NDArray[np.uint8], colour_space: str) -> FloatArray:
-    """:func:`gog_colour_descriptor` under the caller's BLAS limit."""
-    return region_gaussians(patch_gaussians(pixel_features(image_rgb, colour_space)))
+def _crop_descriptor(image_rgb: NDArray[np.uint8], colour_spaces: Sequence[str]) -> FloatArray:
+    """Raw GOG descriptors of one ``(H, W, 3)`` RGB crop, concatenated in ``colour_spaces``
+    order, under the caller's BLAS limit.
+
+    The colour spaces share the shape features, so their patch moments come from one Gram
+    matrix per patch over all channels; each space takes its rows and columns of it (entry
+    by entry the same products as a Gram matrix of its own features).
+    """
+    shape = shape_features(image_rgb)
+    colours = [colour_features(image_rgb, space) for space in colour_spaces]
+    gram = patch_moments(np.concatenate([shape, *colours], axis=-1))
+    shared = 1 + shape.shape[-1]  # the patch's ones channel, then the shape features
+    parts, start = [], shared
+    for colour in colours:
+        keep = np.r_[0:shared, start : start + colour.shape[-1]]
+        start += colour.shape[-1]
+        parts.append(region_gaussians(gaussians_from_moments(gram[..., keep[:, None], keep])))
+    return np.concatenate(parts)
 
 
 def gog_block_sizes() -> tuple[int, ...]:
@@ -295,7 +360,7 @@ def gog_descriptor(
     """
     image_rgb = _rgb_crop(image_bgr)
     with single_threaded_blas():
-        return np.concatenate([_colour_descriptor(image_rgb, space) for space in colour_spaces])
+        return _crop_descriptor(image_rgb, colour_spaces)
 
 
 def _rgb_crop(image_bgr: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -309,9 +374,10 @@ def _rgb_crop(image_bgr: NDArray[np.uint8]) -> NDArray[np.uint8]:
 def gog_descriptors(images_bgr: ArrayLike, workers: int = 0) -> FloatArray:
     """Raw GOG descriptors of ``(P, H, W, 3)`` uint8 BGR crops -> ``(P, 27622)``.
 
-    Each (crop, colour space) is one task, run on ``workers`` threads (0: as many as
+    Each crop is one task (its four colour spaces share the shape features and the patch
+    moments), run on ``workers`` threads (0: as many as
     :func:`~trackfw_plugins.detectors.head_scorer.resolve_threads` allows): a gap's few dozen
-    crops take seconds on one core, and NumPy's batched eigendecompositions and running sums
+    crops take seconds on one core, and NumPy's batched eigendecompositions and matrix products
     release the GIL. Every task computes what it would alone, so the result does not depend on
     ``workers``.
     """
@@ -321,20 +387,16 @@ def gog_descriptors(images_bgr: ArrayLike, workers: int = 0) -> FloatArray:
     if len(images) == 0:
         return np.zeros((0, sum(gog_block_sizes())))
     crops = [_rgb_crop(image) for image in images]
-    tasks = [(crop, space) for crop in crops for space in COLOUR_SPACES]
-    threads = min(resolve_threads(workers), len(tasks))
+    threads = min(resolve_threads(workers), len(crops))
     # One BLAS limit around the pool: threadpoolctl's limit is process-wide, and workers
     # entering and leaving their own would restore each other's settings out of order.
     with single_threaded_blas():
         if threads == 1:
-            parts = [_colour_descriptor(crop, space) for crop, space in tasks]
-        else:
-            with ThreadPoolExecutor(threads, thread_name_prefix="trackfw-gog") as pool:
-                parts = list(pool.map(lambda task: _colour_descriptor(*task), tasks))
-    per_crop = len(COLOUR_SPACES)
-    return np.stack(
-        [np.concatenate(parts[k : k + per_crop]) for k in range(0, len(parts), per_crop)]
-    )
+            return np.stack([_crop_descriptor(crop, COLOUR_SPACES) for crop in crops])
+        with ThreadPoolExecutor(threads, thread_name_prefix="trackfw-gog") as pool:
+            return np.stack(
+                list(pool.map(lambda crop: _crop_descriptor(crop, COLOUR_SPACES), crops))
+            )
 
 
 def normalise_gog(
