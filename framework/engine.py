@@ -358,6 +358,10 @@ class _OnlineLoop:
         matched = np.full(len(states), NO_MATCH, dtype=np.int64)
         positions[rows] = solution.positions
         matched[rows] = solution.matched_detection
+        if solution.match_ratios is not None:
+            ratios = np.full(len(states), np.nan)
+            ratios[rows] = solution.match_ratios
+            tracker.see_match_ratios(ratios)
         tracker.reinitialise(b.t, positions, matched, b.detections)
         _time(b, "tracker", matched_at)
         self.gaps.append(

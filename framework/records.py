@@ -327,6 +327,10 @@ class GapSolution:
         cost: the cost of the chosen solution (meaning depends on the matcher), or None.
         chosen: label of the chosen prediction candidate (``"ar2"``...), or None.
         diagnostics: JSON-serialisable details recorded in gaps.json.
+        match_ratios: ``(K,)``, for a matcher that can say it, how clearly each match stood
+            out: the matched detection's cost over the cheapest other detection's for that
+            target (below 1: no other detection fitted as well); NaN for a target without a
+            match or where it is not known (a single detection). None: not given.
     """
 
     positions: FloatArray
@@ -334,6 +338,7 @@ class GapSolution:
     cost: float | None = None
     chosen: str | None = None
     diagnostics: dict[str, Any] = field(default_factory=dict)
+    match_ratios: FloatArray | None = None
 
 
 @dataclass(frozen=True)

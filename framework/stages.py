@@ -270,6 +270,16 @@ class Tracker(Stage[P]):
     def states(self) -> list[TargetState]:
         """The current state of every target, in the order of ``initialise``."""
 
+    def see_match_ratios(self, ratios: FloatArray) -> None:
+        """How clearly each of the gap matcher's matches stood out, before :meth:`reinitialise`.
+
+        Called at b, only when the gap matcher gives them (:attr:`.GapSolution.match_ratios`):
+        ``(K,)``, one per target row in the order of ``initialise`` (NaN for a target without a
+        match, out of the gap match, or where the matcher could not tell). A tracker that checks
+        the matches at b may hold a match that barely beat another detection to a stricter test.
+        The default ignores them.
+        """
+
     def see(self, image: UInt8Array | None) -> None:
         """The pixels of the frame the next call (initialise, step, reinitialise) is about.
 

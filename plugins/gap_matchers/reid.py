@@ -24,7 +24,7 @@ from pydantic import Field
 from trackfw.arrays import FloatArray, IntArray
 from trackfw.records import NO_MATCH, Detections, GapProblem, GapSolution, Prediction
 from trackfw.stages import GapMatcher, Stage, StageParams
-from trackfw_plugins.maths.assignment import hungarian
+from trackfw_plugins.maths.assignment import hungarian, match_ratios
 from trackfw_plugins.maths.gog import gog_block_sizes, gog_descriptors
 from trackfw_plugins.maths.lomo import lomo_descriptors
 from trackfw_plugins.maths.person_reid import (
@@ -168,6 +168,9 @@ class ReidGapMatcher(GapMatcher[ReidParams]):
         """Hungarian on re-ID distances; the predictor's candidates place the unmatched targets.
 
         Every candidate is scored (see :meth:`_solve`); the cheapest wins, the first on ties.
+        Each match's distance over the target's distance to its nearest other detection is
+        given as the solution's ``match_ratios`` (a tracker may test a match that barely beat
+        another harder).
         """
         if problem.frame_a is None or problem.frame_b is None:
             raise ValueError("the reid gap matcher needs the pixels of frames a and b")
@@ -178,12 +181,16 @@ class ReidGapMatcher(GapMatcher[ReidParams]):
             return GapSolution(np.zeros((0, 2)), rows, chosen=candidates[0].label)
         query = self._query(problem)
         gallery = self._features(problem.frame_b, detections.points, detections)
+        ratios = np.full(len(rows), np.nan)
         if len(detections):
             # The assignment does not depend on the candidate: appearance alone decides it.
-            rows = hungarian(self._distance(query, gallery))
+            distances = self._distance(query, gallery)
+            rows = hungarian(distances)
+            ratios = match_ratios(distances, rows)
         scored = [self._solve(c, problem, rows, query, gallery) for c in candidates]
         best = min(range(len(scored)), key=lambda i: (scored[i][1], i))
         solution = scored[best][0]
+        solution.match_ratios = ratios
         solution.diagnostics["candidates"] = {
             candidate.label: None if not np.isfinite(cost) else round(cost, 6)
             for candidate, (_, cost) in zip(candidates, scored, strict=True)

@@ -91,6 +91,36 @@ def hungarian(
     return assignment
 
 
+def match_ratios(cost: FloatArray, assignment: IntArray) -> FloatArray:
+    """How clearly each row's assigned column stood out: its cost over the row's cheapest other.
+
+    Below 1 no other column fitted that row as well; 1 or more, another fitted at least as
+    well (the assignment gave it to someone else, or the two tie). A ratio test, as in feature
+    matching, read off the assignment's own cost matrix.
+
+    Args:
+        cost: ``(K, N)`` non-negative costs.
+        assignment: ``(K,)`` column of each row, ``-1`` when unassigned.
+
+    Returns:
+        ``(K,)`` ratios; NaN for an unassigned row and where the row has no other column.
+
+    >>> match_ratios(np.array([[1.0, 4.0, 2.0], [3.0, 3.75, 9.0]]), np.array([0, 1])).tolist()
+    [0.5, 1.25]
+    >>> match_ratios(np.array([[1.0], [2.0]]), np.array([0, -1])).tolist()
+    [nan, nan]
+    """
+    cost = np.asarray(cost, dtype=np.float64)
+    ratios = np.full(len(assignment), np.nan)
+    if cost.ndim != 2 or cost.shape[1] < 2:
+        return ratios
+    for row in np.flatnonzero(assignment >= 0):
+        others = np.delete(cost[row], assignment[row])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratios[row] = cost[row, assignment[row]] / others.min()
+    return ratios
+
+
 def outnumbered(cost: FloatArray, gate: float | None = None) -> tuple[BoolArray, IntArray]:
     """Rows that share their nearest column with other rows that have no other column to take.
 

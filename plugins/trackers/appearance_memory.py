@@ -61,6 +61,20 @@ class AppearanceSettings(FiniteModel):
         description="at b, a gap matcher's match farther than this from the target's descriptor is"
         " refused and the target is lost (re-found later by re-acquisition); None keeps every match",
     )
+    gap_weak_ratio: float | None = Field(
+        None,
+        gt=0.0,
+        description="at b, a gap matcher's match whose cost is more than this times the"
+        " target's cost to its nearest other detection (the matcher's match_ratios) barely beat"
+        " it: its look must be within gap_weak_max_distance; None: every match is held to"
+        " gap_max_distance",
+    )
+    gap_weak_max_distance: float | None = Field(
+        None,
+        gt=0.0,
+        description="the look limit of such a weak match at b (refused: lost, and not handed"
+        " the same detection again by the re-match by look); None: gap_max_distance",
+    )
     gap_rematch_ratio: float | None = Field(
         0.8,
         gt=0.0,

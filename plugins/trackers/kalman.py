@@ -49,6 +49,7 @@ from trackfw_plugins.trackers.look_at_b import (
     box_sides,
     check_looks_at_b,
     detection_rows_of,
+    look_limits,
     matched_sides,
     record_at_b,
     refuse_by_size,
@@ -77,12 +78,18 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
     def see(self, image: UInt8Array | None) -> None:
         self.image = image
 
+    def see_match_ratios(self, ratios: FloatArray) -> None:
+        """Kept for the next :meth:`reinitialise`: a weak match meets a stricter look limit
+        (:func:`.look_limits`)."""
+        self._match_ratios: FloatArray | None = np.asarray(ratios, dtype=np.float64).copy()
+
     def start(self, video: VideoContext) -> None:
         params = self.params
         self.video = video
         self.image = None
         self._frame = 0
         self._checked_at_b: dict[int, dict[str, object]] = {}
+        self._match_ratios = None
         self.frame_motion = FrameMotion(params.cmc_registration) if params.cmc else None
         self.gate = (
             None
@@ -471,6 +478,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             inactive,
             refused,
             checked_looks,
+            look_limits(self.params.appearance, self._match_ratios, len(matched)),
         )
         # The re-match by look may hand a refused target a neighbour's head again.
         again = self.reacquisition.refuse_beside(
@@ -563,7 +571,9 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             {"size": by_size, "seen apart at a": beside},
             np.union1d(active, returned),
             self.statuses(),
+            self._match_ratios,
         )
+        self._match_ratios = None  # they belong to this gap's match
 
     def checked_at_b(self) -> dict[int, dict[str, object]]:
         """The gap matcher's matches at the last b as checked here (:func:`.record_at_b`)."""

@@ -80,6 +80,29 @@ def refuse_by_size(
     return refused
 
 
+def look_limits(settings: AppearanceSettings, ratios: FloatArray | None, count: int) -> FloatArray:
+    """``(count,)`` look limit of each target's match at b: ``gap_max_distance``, or
+    ``gap_weak_max_distance`` for a weak match (its ``ratios`` entry, the gap matcher's
+    :attr:`.GapSolution.match_ratios`, above ``gap_weak_ratio``; NaN is never weak).
+
+    >>> settings = AppearanceSettings(descriptor="person-reid", gap_max_distance=0.4,
+    ...                               gap_weak_ratio=0.9, gap_weak_max_distance=0.3)
+    >>> look_limits(settings, np.array([0.5, 0.95, np.nan]), 3).tolist()
+    [0.4, 0.3, 0.4]
+    >>> look_limits(settings, None, 2).tolist()
+    [0.4, 0.4]
+    """
+    limit = np.inf if settings.gap_max_distance is None else settings.gap_max_distance
+    limits = np.full(count, limit)
+    weak_limit, weak_ratio = settings.gap_weak_max_distance, settings.gap_weak_ratio
+    if ratios is None or weak_limit is None or weak_ratio is None or len(ratios) != count:
+        return limits
+    with np.errstate(invalid="ignore"):
+        weak = np.asarray(ratios) > weak_ratio
+    limits[weak] = np.minimum(limits[weak], weak_limit)
+    return limits
+
+
 def check_looks_at_b(
     memory: AppearanceMemory,
     life: Lifecycle,
@@ -93,14 +116,16 @@ def check_looks_at_b(
     inactive: IntArray,
     refused: IntArray | None = None,
     checked_looks: FloatArray | None = None,
+    limits: FloatArray | None = None,
 ) -> tuple[IntArray, IntArray]:
     """Refuse the matches at b that look like someone else; re-match those targets by look.
 
-    A match farther than ``settings.gap_max_distance`` from the target's descriptor is refused.
-    The refused targets, and the ``inactive`` ones (lost and out-of-view targets with
-    ``gap_rematch_inactive``), then take, by Hungarian on appearance distance (same limit, ratio
-    test, sizes checked), the detections no kept match holds: when the window match swapped two
-    targets, each finds its own head again.
+    A match farther than ``settings.gap_max_distance`` (or its target's entry of ``limits``)
+    from the target's descriptor is refused. The refused targets, and the ``inactive`` ones
+    (lost and out-of-view targets with ``gap_rematch_inactive``), then take, by Hungarian on
+    appearance distance (``gap_max_distance``, ratio test, sizes checked), the detections no
+    kept match holds, never the one a target's match was just refused for: when the window
+    match swapped two targets, each finds its own head again.
 
     Args:
         memory: the targets' descriptors.
@@ -117,6 +142,8 @@ def check_looks_at_b(
             re-matched by look like the ones the look refuses.
         checked_looks: ``(K,)``, when given, receives the look distance of each checked match
             (the value compared with ``gap_max_distance``), for the record of the check.
+        limits: ``(K,)`` look limit of each target's match (a weak match's is stricter); None:
+            ``gap_max_distance`` for every one.
 
     Returns:
         The refused targets left without a match (to be lost), and the inactive targets that
@@ -131,7 +158,9 @@ def check_looks_at_b(
     look = memory.looks(image, checked, detections, detection_rows[checked])
     if checked_looks is not None:
         checked_looks[checked] = np.diagonal(look)
-    unlike = checked[np.diagonal(look) > limit]  # NaN (nothing known) refuses nothing
+    own_limits = np.full(len(checked), limit) if limits is None else limits[checked]
+    unlike = checked[np.diagonal(look) > own_limits]  # NaN (nothing known) refuses nothing
+    refused_columns = detection_rows[unlike].copy()
     if refused is not None:
         unlike = np.concatenate([unlike, refused])
     if len(unlike) + len(inactive) == 0:
@@ -144,6 +173,9 @@ def check_looks_at_b(
     look = memory.looks(image, candidates, detections, np.arange(len(detections)))
     if settings.gap_rematch_ratio is not None:
         look = np.where(nearer_by_ratio(look, settings.gap_rematch_ratio), look, np.inf)
+    # A match refused by look is not handed back by the re-match (a weak match's limit is
+    # stricter than the re-match's).
+    look[np.arange(len(refused_columns)), refused_columns] = np.inf
     cost = look[:, free]
     sides = box_sides(detections)[free]
     cost[np.isnan(cost) | life.size_mismatch(candidates, sides)] = np.inf
@@ -200,6 +232,7 @@ def record_at_b(
     refusals: dict[str, IntArray],
     rows: IntArray,
     statuses: list[str],
+    ratios: FloatArray | None = None,
 ) -> dict[int, dict[str, object]]:
     """The record of the check at b (gaps.json ``at_b``) for ``rows``, keyed by row.
 
@@ -211,13 +244,15 @@ def record_at_b(
             listed wins); a refused match not listed was refused by look.
         rows: the targets to record (those in the gap match and those found by look).
         statuses: every target's lifecycle status after b.
+        ratios: ``(K,)`` the gap matcher's :attr:`.GapSolution.match_ratios` (recorded as
+            ``ratio``; None or NaN: not given).
 
     >>> import numpy as np
     >>> record = record_at_b(np.array([3, 4, -1]), np.array([3, 5, -1]),
     ...                      np.array([0.1, 0.6, np.nan]), {}, np.arange(3),
     ...                      ["tracked", "tracked", "tentative"])
     >>> record[1]
-    {'proposed': 4, 'look': 0.6, 'refused': 'look', 'detection': 5, 'by': 'look', 'status': 'tracked'}
+    {'proposed': 4, 'look': 0.6, 'ratio': None, 'refused': 'look', 'detection': 5, 'by': 'look', 'status': 'tracked'}
     >>> record[2]["refused"], record[2]["by"]
     (None, None)
     """
@@ -229,10 +264,16 @@ def record_at_b(
             reason = next((name for name, refused in refusals.items() if row in refused), "look")
         record[row] = {
             "proposed": None if given == NO_MATCH else given,
-            "look": None if not np.isfinite(looks[row]) else round(float(looks[row]), 4),
+            "look": _rounded(looks[row]),
+            "ratio": _rounded(None if ratios is None else ratios[row]),
             "refused": reason,
             "detection": None if held == NO_MATCH else held,
             "by": None if held == NO_MATCH else ("gap matcher" if held == given else "look"),
             "status": statuses[row],
         }
     return record
+
+
+def _rounded(value: float | None) -> float | None:
+    """``value`` to 4 decimals for a JSON record; None when unknown (None or not finite)."""
+    return None if value is None or not np.isfinite(value) else round(float(value), 4)

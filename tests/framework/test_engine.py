@@ -6,6 +6,7 @@ import csv
 import json
 from pathlib import Path
 from types import ModuleType
+from typing import ClassVar
 
 import cv2
 import numpy as np
@@ -18,6 +19,7 @@ from trackfw.hookspecs import hookimpl
 from trackfw.pipeline import load_pipeline
 from trackfw.records import Detections, FrameData
 from trackfw.registry import Registry, load_registry
+from trackfw_plugins.gap_matchers.assignment import AssignmentGapMatcher
 from trackfw_plugins.trackers.kalman import KalmanTracker
 
 from .conftest import PixelCentreDetector, registry_with
@@ -337,3 +339,51 @@ def test_the_trackers_check_at_b_is_recorded_by_target_id(
     run, pipeline = _run(video, pipeline_file(text, "recording.yaml"), registry=registry)
     gaps = json.loads((write_run(run, pipeline, tmp_path / "out") / "gaps.json").read_text())
     assert gaps[0]["at_b"] == {str(run.target_ids[1]): {"refused": "because"}}
+
+
+class _SayingGapMatcher(AssignmentGapMatcher):
+    """The assignment gap matcher that gives each match a ratio: 0.5, 0.6, ... by problem row."""
+
+    name = "saying"
+
+    def match(self, problem):  # type: ignore[no-untyped-def]
+        solution = super().match(problem)
+        solution.match_ratios = 0.5 + 0.1 * np.arange(len(problem.target_ids))
+        return solution
+
+
+class _RatioTracker(KalmanTracker):
+    """The Kalman tracker that records the ratios it is shown before each restart."""
+
+    name = "ratio-seeing"
+    seen: ClassVar[list[np.ndarray | None]] = []  # one entry per reinitialise, any instance
+
+    def see_match_ratios(self, ratios) -> None:  # type: ignore[no-untyped-def]
+        self.pending = np.asarray(ratios).copy()
+
+    def reinitialise(self, t, positions, matched_detection, detections=None) -> None:  # type: ignore[no-untyped-def]
+        _RatioTracker.seen.append(getattr(self, "pending", None))
+        self.pending = None
+        super().reinitialise(t, positions, matched_detection, detections)
+
+
+def test_the_gap_matchers_ratios_reach_the_tracker_by_target_row(
+    points_video, pipeline_file
+) -> None:
+    module = ModuleType("ratio_plugin")
+
+    @hookimpl
+    def trackfw_register_stages(registry: Registry) -> None:
+        registry.add_tracker(_RatioTracker)
+        registry.add_gap_matcher(_SayingGapMatcher)
+
+    module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
+    registry = load_registry(extra_modules=[("ratio", module)])
+    video = points_video(n_frames=100, intervals=[(40, 60)])
+    text = pipeline_file().read_text().replace("{type: kalman,", "{type: ratio-seeing,")
+    text = text.replace("{type: assignment,", "{type: saying,")
+    _RatioTracker.seen = []
+    run, _ = _run(video, pipeline_file(text, "ratios.yaml"), registry=registry)
+    # One gap, every target in its match: the ratios come in the targets' order, before b.
+    assert len(_RatioTracker.seen) == 1 and _RatioTracker.seen[0] is not None
+    np.testing.assert_allclose(_RatioTracker.seen[0], 0.5 + 0.1 * np.arange(len(run.target_ids)))

@@ -61,6 +61,24 @@ def test_reid_relinks_shuffled_people(descriptor: str) -> None:
     expected = [order.index(i) for i in range(4)]
     assert solution.matched_detection.tolist() == expected
     assert np.allclose(solution.positions, at_b[expected])
+    # Each person stands out from the three others: every match's ratio is below 1.
+    assert solution.match_ratios is not None and (solution.match_ratios < 1.0).all()
+
+
+def test_reid_says_which_match_barely_beat_another_detection() -> None:
+    # At b three people are detected: target 1 and two in target 3's colour. Target 1's match
+    # stands out; whoever takes a look-alike barely beat (or lost to) the other one; of four
+    # targets one is left without a detection, and without a ratio.
+    at_b = np.array([[150.0, 120.0], [300.0, 110.0], [420.0, 130.0], [560.0, 100.0]])
+    colours = [COLOURS[0], COLOURS[2], COLOURS[2], COLOURS[3]]
+    problem = _problem(at_b, colours, detected=3)
+    matcher = load_registry().build_stage(
+        "gap_matcher", {"type": "reid", "params": {"descriptor": "gog"}}
+    )
+    ratios = matcher.match(problem).match_ratios
+    assert ratios is not None and ratios[0] < 0.9
+    assert np.isnan(ratios).sum() == 1  # four targets, three detections
+    assert np.nanmax(ratios[1:]) > 0.95
 
 
 def test_window_tps_rpm_deep_appearance_is_smallest_for_the_same_person() -> None:

@@ -10,6 +10,7 @@ from trackfw_plugins.trackers.lifecycle import Lifecycle, LifecycleSettings
 from trackfw_plugins.trackers.look_at_b import (
     check_looks_at_b,
     detection_rows_of,
+    look_limits,
     matched_sides,
     record_at_b,
 )
@@ -101,6 +102,7 @@ def test_the_check_at_b_is_recorded_with_its_looks_and_reasons() -> None:
     assert record[0] == {
         "proposed": 0,
         "look": 0.6,
+        "ratio": None,
         "refused": "look",
         "detection": 2,
         "by": "look",
@@ -130,3 +132,45 @@ def test_a_refused_target_without_a_clear_look_is_left_to_be_lost() -> None:
         np.zeros(0, dtype=np.int64),
     )
     assert unlike.tolist() == [0] and matched.tolist() == [-1]
+
+
+def _weak_settings() -> AppearanceSettings:
+    return AppearanceSettings(
+        gap_max_distance=0.4, gap_weak_ratio=0.92, gap_weak_max_distance=0.3, gap_rematch_ratio=0.8
+    )
+
+
+def _check_one(table: list[list[float]], ratio: float) -> tuple[list[int], list[int]]:
+    """One target matched to detection 0 with gap-matcher ``ratio``; (refused, matched) after."""
+    settings = _weak_settings()
+    life = Lifecycle.start(LifecycleSettings(), VIDEO, 0, np.zeros((1, 2)))
+    matched = np.array([0])
+    unlike, _ = check_looks_at_b(
+        _Looks(table),  # type: ignore[arg-type]
+        life,
+        None,
+        settings,
+        np.array([0]),
+        matched,
+        matched.copy(),
+        np.zeros((1, 2)),
+        _detections(),
+        np.zeros(0, dtype=np.int64),
+        limits=look_limits(settings, np.array([ratio]), 1),
+    )
+    return unlike.tolist(), matched.tolist()
+
+
+def test_a_weak_match_needs_the_stricter_look_and_is_not_handed_back() -> None:
+    # Its look (0.35) passes gap_max_distance; it barely beat another detection in the gap
+    # matcher (0.95), so it must be within 0.3. The re-match by look would take detection 0
+    # again (0.35 against 0.6 and 0.7 passes the ratio test): a refused match is not handed back.
+    table = [[0.35, 0.6, 0.7]]
+    assert _check_one(table, 0.95) == ([0], [-1])
+    assert _check_one(table, 0.85) == ([], [0])  # clear in the gap matcher: the usual limit
+    assert _check_one(table, float("nan")) == ([], [0])  # not said: the usual limit
+
+
+def test_a_refused_weak_match_still_finds_its_own_head_by_look() -> None:
+    # Refused on detection 0, the target takes detection 2, which it looks like clearly.
+    assert _check_one([[0.35, 0.6, 0.2]], 0.95) == ([], [2])
