@@ -291,13 +291,18 @@ class _WithdrawingTracker(KalmanTracker):
         return [(0, self.b)] if getattr(self, "due", False) else []
 
 
-def _registry_with_tracker(tracker: type[KalmanTracker]) -> Registry:
-    """The built-in registry plus ``tracker``, registered as a one-file plugin would be."""
+def _registry_with_tracker(
+    tracker: type[KalmanTracker], gap_matcher: type[AssignmentGapMatcher] | None = None
+) -> Registry:
+    """The built-in registry plus ``tracker`` (and ``gap_matcher``), registered as a one-file
+    plugin would be."""
     module = ModuleType(f"{tracker.name}_plugin")
 
     @hookimpl
     def trackfw_register_stages(registry: Registry) -> None:
         registry.add_tracker(tracker)
+        if gap_matcher is not None:
+            registry.add_gap_matcher(gap_matcher)
 
     module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
     return load_registry(extra_modules=[(tracker.name, module)])
@@ -370,15 +375,7 @@ class _RatioTracker(KalmanTracker):
 def test_the_gap_matchers_ratios_reach_the_tracker_by_target_row(
     points_video, pipeline_file
 ) -> None:
-    module = ModuleType("ratio_plugin")
-
-    @hookimpl
-    def trackfw_register_stages(registry: Registry) -> None:
-        registry.add_tracker(_RatioTracker)
-        registry.add_gap_matcher(_SayingGapMatcher)
-
-    module.trackfw_register_stages = trackfw_register_stages  # type: ignore[attr-defined]
-    registry = load_registry(extra_modules=[("ratio", module)])
+    registry = _registry_with_tracker(_RatioTracker, _SayingGapMatcher)
     video = points_video(n_frames=100, intervals=[(40, 60)])
     text = pipeline_file().read_text().replace("{type: kalman,", "{type: ratio-seeing,")
     text = text.replace("{type: assignment,", "{type: saying,")

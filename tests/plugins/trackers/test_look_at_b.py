@@ -115,34 +115,21 @@ def test_the_check_at_b_is_recorded_with_its_looks_and_reasons() -> None:
 
 def test_a_refused_target_without_a_clear_look_is_left_to_be_lost() -> None:
     # Target 0's look at every other detection is as far as at its match: nothing stands out.
-    looks = _Looks([[0.6, 0.35, 0.36]])
-    life = Lifecycle.start(LifecycleSettings(), VIDEO, 0, np.zeros((1, 2)))
     settings = AppearanceSettings(gap_max_distance=0.4, gap_rematch_ratio=0.8)
-    matched = np.array([0])
-    unlike, _ = check_looks_at_b(
-        looks,  # type: ignore[arg-type]
-        life,
-        None,
-        settings,
-        np.array([0]),
-        matched,
-        matched.copy(),
-        np.zeros((1, 2)),
-        _detections(),
-        np.zeros(0, dtype=np.int64),
-    )
-    assert unlike.tolist() == [0] and matched.tolist() == [-1]
+    assert _check_one([[0.6, 0.35, 0.36]], settings) == ([0], [-1])
 
 
-def _weak_settings() -> AppearanceSettings:
-    return AppearanceSettings(
-        gap_max_distance=0.4, gap_weak_ratio=0.92, gap_weak_max_distance=0.3, gap_rematch_ratio=0.8
-    )
+WEAK = AppearanceSettings(
+    gap_max_distance=0.4, gap_weak_ratio=0.92, gap_weak_max_distance=0.3, gap_rematch_ratio=0.8
+)
 
 
-def _check_one(table: list[list[float]], ratio: float) -> tuple[list[int], list[int]]:
-    """One target matched to detection 0 with gap-matcher ``ratio``; (refused, matched) after."""
-    settings = _weak_settings()
+def _check_one(
+    table: list[list[float]], settings: AppearanceSettings, ratio: float | None = None
+) -> tuple[list[int], list[int]]:
+    """One target matched to detection 0 (gap-matcher ``ratio``, if given), checked with the
+    look distances ``table`` to :func:`_detections`; returns (refused left without one, matched).
+    """
     life = Lifecycle.start(LifecycleSettings(), VIDEO, 0, np.zeros((1, 2)))
     matched = np.array([0])
     unlike, _ = check_looks_at_b(
@@ -156,7 +143,7 @@ def _check_one(table: list[list[float]], ratio: float) -> tuple[list[int], list[
         np.zeros((1, 2)),
         _detections(),
         np.zeros(0, dtype=np.int64),
-        limits=look_limits(settings, np.array([ratio]), 1),
+        limits=look_limits(settings, None if ratio is None else np.array([ratio]), 1),
     )
     return unlike.tolist(), matched.tolist()
 
@@ -166,11 +153,11 @@ def test_a_weak_match_needs_the_stricter_look_and_is_not_handed_back() -> None:
     # matcher (0.95), so it must be within 0.3. The re-match by look would take detection 0
     # again (0.35 against 0.6 and 0.7 passes the ratio test): a refused match is not handed back.
     table = [[0.35, 0.6, 0.7]]
-    assert _check_one(table, 0.95) == ([0], [-1])
-    assert _check_one(table, 0.85) == ([], [0])  # clear in the gap matcher: the usual limit
-    assert _check_one(table, float("nan")) == ([], [0])  # not said: the usual limit
+    assert _check_one(table, WEAK, 0.95) == ([0], [-1])
+    assert _check_one(table, WEAK, 0.85) == ([], [0])  # clear in the gap matcher: the usual limit
+    assert _check_one(table, WEAK, float("nan")) == ([], [0])  # not said: the usual limit
 
 
 def test_a_refused_weak_match_still_finds_its_own_head_by_look() -> None:
     # Refused on detection 0, the target takes detection 2, which it looks like clearly.
-    assert _check_one([[0.35, 0.6, 0.2]], 0.95) == ([], [2])
+    assert _check_one([[0.35, 0.6, 0.2]], WEAK, 0.95) == ([], [2])
