@@ -114,10 +114,12 @@ def match_ratios(cost: FloatArray, assignment: IntArray) -> FloatArray:
     ratios = np.full(len(assignment), np.nan)
     if cost.ndim != 2 or cost.shape[1] < 2:
         return ratios
-    for row in np.flatnonzero(assignment >= 0):
-        others = np.delete(cost[row], assignment[row])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratios[row] = cost[row, assignment[row]] / others.min()
+    rows = np.flatnonzero(assignment >= 0)
+    columns = assignment[rows]
+    others = cost[rows].copy()
+    others[np.arange(len(rows)), columns] = np.inf
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratios[rows] = cost[rows, columns] / others.min(axis=1)
     return ratios
 
 
