@@ -10,7 +10,8 @@ Its parameters are in :mod:`trackfw_plugins.trackers.kalman_params`. The filter 
 tentative) and expected places in :mod:`trackfw_plugins.trackers.lifecycle`, the re-acquisition
 of lost targets in :mod:`trackfw_plugins.trackers.reacquisition`, the bystanders'
 anonymous tracks in :mod:`trackfw_plugins.trackers.bystanders`, the look check of the matches at b
-in :mod:`trackfw_plugins.trackers.look_at_b`, the walk check after b in
+in :mod:`trackfw_plugins.trackers.look_at_b`, the contest of a detection by look in
+:mod:`trackfw_plugins.trackers.contest`, the walk check after b in
 :mod:`trackfw_plugins.trackers.walk_check`, the start split in
 :mod:`trackfw_plugins.trackers.start_split`, camera-motion compensation in
 :mod:`trackfw_plugins.trackers.camera_motion`.
@@ -43,6 +44,7 @@ from trackfw_plugins.maths.tps_rpm import match_points
 from trackfw_plugins.trackers.appearance_memory import AppearanceMemory
 from trackfw_plugins.trackers.bystanders import Bystanders
 from trackfw_plugins.trackers.camera_motion import FrameMotion
+from trackfw_plugins.trackers.contest import contest_hidden
 from trackfw_plugins.trackers.kalman_params import KalmanTrackerParams
 from trackfw_plugins.trackers.lifecycle import Lifecycle
 from trackfw_plugins.trackers.look_at_b import (
@@ -54,7 +56,7 @@ from trackfw_plugins.trackers.look_at_b import (
     record_at_b,
     refuse_by_size,
 )
-from trackfw_plugins.trackers.look_rules import hand_over, nearer_by_ratio
+from trackfw_plugins.trackers.look_rules import nearer_by_ratio
 from trackfw_plugins.trackers.neighbour_looks import NeighbourLooks
 from trackfw_plugins.trackers.reacquisition import Reacquisition
 from trackfw_plugins.trackers.start_split import StartSplit
@@ -362,54 +364,20 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         return held, shared, active[unseen[sharing][first]]
 
     def _contest(
-        self,
-        active: IntArray,
-        rows: IntArray,
-        detections: Detections,
-        sides: FloatArray,
+        self, active: IntArray, rows: IntArray, detections: Detections, sides: FloatArray
     ) -> IntArray:
-        """Give a detection to the target hidden behind it when it looks more like that one.
-
-        Two people crossing give one detection; the Hungarian hands it to whichever prediction
-        lies nearer, and the other target, left without, is lost after a few frames and rarely
-        found again in a crowd. Each target left without a detection (``active`` rows with
-        ``rows`` -1) and hidden behind a detection another target took
-        (:meth:`Lifecycle.hidden_behind_which`) contests it by look: when its own look at the
-        detection is nearer than the holder's by ``appearance.contest_margin``, the detection
-        changes hands. Deciding between the two targets' own descriptors asks less of the
-        embedder than a fixed limit: on crowded low-resolution footage the same person a second
-        later and another person overlap in distance, but rarely in order.
-
-        ``sides`` are the detections' ``(N,)`` box sides.
-
-        Returns:
-            ``rows`` with the contested detections moved (:func:`hand_over`).
-        """
-        margin = self.params.appearance.contest_margin
-        hit = rows >= 0
-        if margin is None or self.image is None or not self.memory.active:
-            return rows
-        if hit.all() or not hit.any():
-            return rows
-        holders, missing = np.flatnonzero(hit), np.flatnonzero(~hit)
-        taken = rows[holders]
-        behind = self.life.hidden_behind_which(
-            active[missing],
-            self.bank.positions[active[missing]],
-            detections.points[taken],
-            sides[taken],
+        """:func:`.contest_hidden` with this tracker's looks, lifecycle and predictions."""
+        return contest_hidden(
+            self.memory,
+            self.life,
+            self.image,
+            self.params.appearance.contest_margin,
+            active,
+            self.bank.positions,
+            rows,
+            detections,
+            sides,
         )
-        hidden = behind >= 0
-        claimants, held_by = missing[hidden], holders[behind[hidden]]
-        if len(claimants) == 0:
-            return rows
-        columns = np.unique(rows[held_by])
-        targets = np.concatenate([active[claimants], active[held_by]])
-        look = self.memory.looks(self.image, targets, detections, columns)
-        pairs = np.arange(len(claimants))
-        column = np.searchsorted(columns, rows[held_by])
-        own, theirs = look[pairs, column], look[len(claimants) + pairs, column]
-        return hand_over(rows, claimants, held_by, own, theirs, margin)
 
     def _compensate(self, detections: Detections) -> None:
         """Warp the filters by the camera motion from the previous frame (when it registers)."""
