@@ -38,6 +38,20 @@ def observation_matrix() -> FloatArray:
     return np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
 
 
+def extrapolate(means: FloatArray, horizon: int) -> FloatArray:
+    """``(K, 2)`` positions of ``(K, 4)`` states after ``horizon`` frames without correction.
+
+    u = H·F^h·s, which is position + h·velocity (the paper's "TR" prediction across a gap).
+
+    >>> extrapolate(np.array([[10.0, 20.0, 1.5, -2.0]]), 4)
+    array([[16., 12.]])
+    """
+    if horizon < 0:
+        raise ValueError(f"horizon must be non-negative, got {horizon}")
+    propagate = observation_matrix() @ np.linalg.matrix_power(transition_matrix(), horizon)
+    return np.asarray(means, dtype=np.float64).reshape(-1, 4) @ propagate.T
+
+
 @dataclass
 class KalmanBank:
     """Independent constant-velocity Kalman filters, one per target.

@@ -14,7 +14,7 @@ import numpy as np
 
 from trackfw.records import GapProblem, Prediction
 from trackfw.stages import Predictor, StageParams
-from trackfw_plugins.maths.kalman import observation_matrix, transition_matrix
+from trackfw_plugins.maths.kalman import extrapolate
 
 
 class KalmanPredictorParams(StageParams):
@@ -36,14 +36,10 @@ class KalmanPredictor(Predictor[KalmanPredictorParams]):
         Returns:
             One :class:`Prediction` labelled ``"kalman"`` with ``(K, 2)`` positions.
         """
-        horizon = problem.horizon
-        if horizon < 0:
-            raise ValueError(f"horizon must be non-negative, got {horizon}")
         states = np.zeros((len(problem.states), 4))
         for row, state in enumerate(problem.states):
             states[row, :2] = np.asarray(state.position, dtype=np.float64).reshape(2)
             if state.velocity is not None:
                 states[row, 2:] = np.asarray(state.velocity, dtype=np.float64).reshape(2)
-        propagate = observation_matrix() @ np.linalg.matrix_power(transition_matrix(), horizon)
-        positions = states @ propagate.T
+        positions = extrapolate(states, problem.horizon)
         return [Prediction(label="kalman", positions=positions, diagnostics={})]
