@@ -75,6 +75,13 @@ class AppearanceSettings(FiniteModel):
         description="the look limit of such a weak match at b (refused: lost, and not handed"
         " the same detection again by the re-match by look); None: gap_max_distance",
     )
+    gap_continuity_fallback: bool = Field(
+        False,
+        description="at b, a target whose gap-matcher match is refused (size, seen apart at a,"
+        " look) first takes the detection continuity proposes (its Kalman state at a carried"
+        " over the interval, Hungarian on distance, as the 'assignment' gap matcher with the"
+        " 'kalman' predictor) when that one passes the same checks",
+    )
     gap_rematch_ratio: float | None = Field(
         0.8,
         gt=0.0,

@@ -50,6 +50,8 @@ from trackfw_plugins.trackers.lifecycle import Lifecycle
 from trackfw_plugins.trackers.look_at_b import (
     box_sides,
     check_looks_at_b,
+    continuity_rows,
+    detection_indices,
     detection_rows_of,
     look_limits,
     matched_sides,
@@ -104,6 +106,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         params = self.params
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         self.target_ids = np.asarray(target_ids, dtype=np.int64)
+        self._frame = t
         self.bank = KalmanBank.start(positions, params.P0, params.Q, params.R)
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
         self.life = Lifecycle.start(params.lifecycle, self.video, t, positions)
@@ -417,6 +420,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         detections: Detections | None,
         refused: IntArray,
         checked_looks: FloatArray,
+        continuity: IntArray,
     ) -> tuple[IntArray, IntArray]:
         """The matches at b checked by look and the refused and lost targets re-matched by look
         (:func:`.check_looks_at_b`; arrays updated in place), then by the people kept beside
@@ -447,6 +451,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             refused,
             checked_looks,
             look_limits(self.params.appearance, self._match_ratios, len(matched)),
+            continuity if self.params.appearance.gap_continuity_fallback else None,
         )
         # The re-match by look may hand a refused target a neighbour's head again.
         again = self.reacquisition.refuse_beside(
@@ -490,6 +495,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self._end_segment_state()
         active = self.life.active()
         detection_rows = detection_rows_of(matched, detections)
+        continuity = self._continuity_at_b(t, active, detections, detection_rows)
         sides = matched_sides(detection_rows, detections)
         refused = refuse_by_size(self.life, active, matched, detection_rows, sides)
         by_size = np.flatnonzero((proposed != NO_MATCH) & (matched == NO_MATCH))
@@ -500,7 +506,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         refused = np.union1d(refused, beside)
         looks = np.full(len(matched), np.nan)
         unlike, returned = self._looks_at_b(
-            active, matched, detection_rows, positions, detections, refused, looks
+            active, matched, detection_rows, positions, detections, refused, looks, continuity
         )
         sides = matched_sides(detection_rows, detections)
         if self.params.reinit_at_b:
@@ -513,11 +519,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self._restart(returned, positions[returned])
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
         self.matched[active] = matched[active]
-        placed = np.setdiff1d(active[matched[active] == NO_MATCH], unlike)
-        outside = ~self.life.inside(positions[placed])
-        self.life.set(placed[outside], OUT_OF_VIEW, t)
-        self.life.set(placed[~outside], TENTATIVE, t)
-        self.life.since[placed[~outside]] = t  # the confirmation clock starts at b
+        self._place(t, np.setdiff1d(active[matched[active] == NO_MATCH], unlike), positions)
         # A match that looks like someone else is no evidence of where the target is: it is
         # lost, and only re-acquisition (with the appearance check) brings it back.
         self.life.set(unlike, LOST, t)
@@ -540,8 +542,31 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
             np.union1d(active, returned),
             self.statuses(),
             self._match_ratios,
+            None if detections is None else detection_indices(continuity, detections),
         )
         self._match_ratios = None  # they belong to this gap's match
+
+    def _place(self, t: int, placed: IntArray, positions: FloatArray) -> None:
+        """The targets ``placed`` at b without a detection: tentative, or out of view when their
+        place (in ``(K, 2)`` ``positions``) is outside the image."""
+        outside = ~self.life.inside(positions[placed])
+        self.life.set(placed[outside], OUT_OF_VIEW, t)
+        self.life.set(placed[~outside], TENTATIVE, t)
+        self.life.since[placed[~outside]] = t  # the confirmation clock starts at b
+
+    def _continuity_at_b(
+        self, t: int, active: IntArray, detections: Detections | None, detection_rows: IntArray
+    ) -> IntArray:
+        """``(K,)`` detection row continuity proposes at b for each active target where it
+        differs from the gap matcher's (:func:`.continuity_rows`); all -1 when the fallback is
+        off. The filters still hold their states at a."""
+        continuity = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
+        if self.params.appearance.gap_continuity_fallback:
+            continuity[active] = continuity_rows(
+                self.bank.means[active], t - self._frame, detections, detection_rows[active]
+            )
+        self._frame = t
+        return continuity
 
     def checked_at_b(self) -> dict[int, dict[str, object]]:
         """The gap matcher's matches at the last b as checked here (:func:`.record_at_b`)."""

@@ -14,7 +14,8 @@ import numpy as np
 
 from trackfw.arrays import FloatArray, IntArray, UInt8Array
 from trackfw.records import NO_MATCH, Detections
-from trackfw_plugins.maths.assignment import hungarian
+from trackfw_plugins.maths.assignment import distance_matrix, hungarian
+from trackfw_plugins.maths.kalman import extrapolate
 from trackfw_plugins.trackers.appearance_memory import AppearanceMemory, AppearanceSettings
 from trackfw_plugins.trackers.lifecycle import Lifecycle
 from trackfw_plugins.trackers.look_rules import nearer_by_ratio
@@ -37,6 +38,14 @@ def detection_rows_of(matched: IntArray, detections: Detections | None) -> IntAr
     for k, index in enumerate(matched):
         rows[k] = lookup.get(int(index), NO_MATCH)
     return rows
+
+
+def detection_indices(rows: IntArray, detections: Detections) -> IntArray:
+    """``(K,)`` detection index of each row of ``detections`` in ``rows`` (-1 stays -1)."""
+    indices = np.full(len(rows), NO_MATCH, dtype=np.int64)
+    found = rows >= 0
+    indices[found] = detections.index[rows[found]]
+    return indices
 
 
 def matched_sides(detection_rows: IntArray, detections: Detections | None) -> FloatArray:
@@ -117,11 +126,13 @@ def check_looks_at_b(
     refused: IntArray | None = None,
     checked_looks: FloatArray | None = None,
     limits: FloatArray | None = None,
+    continuity: IntArray | None = None,
 ) -> tuple[IntArray, IntArray]:
     """Refuse the matches at b that look like someone else; re-match those targets by look.
 
     A match farther than ``settings.gap_max_distance`` (or its target's entry of ``limits``)
-    from the target's descriptor is refused. The refused targets, and the ``inactive`` ones
+    from the target's descriptor is refused. A refused target first falls back to its
+    ``continuity`` proposal (:func:`take_continuity`). The other refused targets, and the ``inactive`` ones
     (lost and out-of-view targets with ``gap_rematch_inactive``), then take, by Hungarian on
     appearance distance (``gap_max_distance``, ratio test, sizes checked), the detections no
     kept match holds, never the one a target's match was just refused for: when the window
@@ -144,6 +155,9 @@ def check_looks_at_b(
             (the value compared with ``gap_max_distance``), for the record of the check.
         limits: ``(K,)`` look limit of each target's match (a weak match's is stricter); None:
             ``gap_max_distance`` for every one.
+        continuity: ``(K,)`` row of ``detections`` that continuity proposes for each target
+            where it differs from the gap matcher's (-1: none; :func:`continuity_rows`); None:
+            no fallback.
 
     Returns:
         The refused targets left without a match (to be lost), and the inactive targets that
@@ -168,6 +182,22 @@ def check_looks_at_b(
     detection_rows[unlike] = NO_MATCH
     matched[unlike] = NO_MATCH
     free = np.setdiff1d(np.arange(len(detections)), detection_rows[detection_rows >= 0])
+    if continuity is not None:
+        took = take_continuity(
+            memory,
+            life,
+            image,
+            limit,
+            unlike[np.isin(continuity[unlike], free)],
+            continuity,
+            (matched, detection_rows, positions),
+            detections,
+        )
+        kept = ~np.isin(unlike, took)
+        refused_columns, unlike = refused_columns[kept[: len(refused_columns)]], unlike[kept]
+        free = np.setdiff1d(free, detection_rows[took])
+        if len(unlike) + len(inactive) == 0:
+            return none, none
     candidates = np.concatenate([unlike, inactive])
     # Every detection is described: the ratio test compares with the taken ones too.
     look = memory.looks(image, candidates, detections, np.arange(len(detections)))
@@ -192,6 +222,66 @@ def check_looks_at_b(
     matched[found] = detections.index[rows]
     positions[found] = detections.points[rows]
     return unlike[~hit[: len(unlike)]], inactive[hit[len(unlike) :]]
+
+
+def continuity_rows(
+    means: FloatArray, horizon: int, detections: Detections | None, proposed: IntArray
+) -> IntArray:
+    """``(K,)`` detection row that continuity proposes for each target at b, -1 where it is the
+    gap matcher's own proposal or there is none.
+
+    Continuity is what the ``assignment`` gap matcher with the ``kalman`` predictor would match
+    (``pipelines/real-tr.yaml``, the floor of ``real.yaml``): each filter's state at a carried
+    over the interval without correction, then Hungarian on pixel distance, no gate.
+
+    Args:
+        means: ``(K, 4)`` filter states at a of the targets in the gap match.
+        horizon: frames from a to b.
+        detections: frame b's detections.
+        proposed: ``(K,)`` detection row of the gap matcher's match of each target (-1: none).
+
+    >>> dets = Detections.from_points(np.array([[0.0, 0.0], [50.0, 0.0]]))
+    >>> continuity_rows(np.array([[40.0, 0, 1, 0], [0, 0, 0, 0]]), 10, dets, np.array([1, 1]))
+    array([-1,  0])
+    """
+    rows = np.full(len(means), NO_MATCH, dtype=np.int64)
+    if detections is None or len(detections) == 0 or len(means) == 0:
+        return rows
+    rows = hungarian(distance_matrix(extrapolate(means, horizon), detections.points))
+    rows[rows == proposed] = NO_MATCH
+    return rows
+
+
+def take_continuity(
+    memory: AppearanceMemory,
+    life: Lifecycle,
+    image: UInt8Array | None,
+    limit: float,
+    refused: IntArray,
+    continuity: IntArray,
+    held: tuple[IntArray, IntArray, FloatArray],
+    detections: Detections,
+) -> IntArray:
+    """The ``refused`` targets that take their ``continuity`` proposal instead: it passes the
+    checks the gap matcher's match failed (the head's size; the look within ``limit``, an
+    unknown look passing as it does there).
+
+    ``held`` is ``(matched, detection_rows, positions)``, as in :func:`check_looks_at_b`, updated
+    in place; ``refused`` holds only targets whose proposal no other target holds. Returns the
+    rows that took theirs.
+    """
+    if len(refused) == 0:
+        return refused
+    matched, detection_rows, positions = held
+    columns = continuity[refused]
+    look = np.diagonal(memory.looks(image, refused, detections, columns))
+    other_size = np.diagonal(life.size_mismatch(refused, box_sides(detections)[columns]))
+    fits = ~(look > limit) & ~other_size
+    took, columns = refused[fits], columns[fits]
+    detection_rows[took] = columns
+    matched[took] = detections.index[columns]
+    positions[took] = detections.points[columns]
+    return took
 
 
 def refuse_beside(
@@ -233,6 +323,7 @@ def record_at_b(
     rows: IntArray,
     statuses: list[str],
     ratios: FloatArray | None = None,
+    continuity: IntArray | None = None,
 ) -> dict[int, dict[str, object]]:
     """The record of the check at b (gaps.json ``at_b``) for ``rows``, keyed by row.
 
@@ -246,6 +337,8 @@ def record_at_b(
         statuses: every target's lifecycle status after b.
         ratios: ``(K,)`` the gap matcher's :attr:`.GapSolution.match_ratios` (recorded as
             ``ratio``; None or NaN: not given).
+        continuity: ``(K,)`` detection index continuity proposed where it differed from the
+            gap matcher (-1: none); a target that holds it was matched ``by`` ``continuity``.
 
     >>> import numpy as np
     >>> record = record_at_b(np.array([3, 4, -1]), np.array([3, 5, -1]),
@@ -268,10 +361,19 @@ def record_at_b(
             "ratio": _rounded(None if ratios is None else ratios[row]),
             "refused": reason,
             "detection": None if held == NO_MATCH else held,
-            "by": None if held == NO_MATCH else ("gap matcher" if held == given else "look"),
+            "by": _matched_by(given, held, NO_MATCH if continuity is None else continuity[row]),
             "status": statuses[row],
         }
     return record
+
+
+def _matched_by(given: int, held: int, continuity: int) -> str | None:
+    """Who gave a target the detection it holds after the check at b (None: it holds none)."""
+    if held == NO_MATCH:
+        return None
+    if held == given:
+        return "gap matcher"
+    return "continuity" if held == continuity else "look"
 
 
 def _rounded(value: float | None) -> float | None:

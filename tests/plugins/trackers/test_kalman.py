@@ -259,3 +259,48 @@ def test_camera_motion_compensation_defaults_to_a_bounded_similarity() -> None:
     tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": {"cmc": True}})
     registration = tracker.params.cmc_registration
     assert registration.model == "similarity" and registration.max_area_change == 1.05
+
+
+def _people(frame: int, people: list[tuple[float, int]]) -> np.ndarray:
+    """Each person a 90 px wide block of noise at ``(x, colour channel)``."""
+    image = np.zeros((720, 1280, 3), dtype=np.uint8)
+    noise = np.random.default_rng(frame).integers(100, 255, size=(720, 1280))
+    for x, channel in people:
+        left = int(x) - 45
+        image[200:400, left : left + 90, channel] = noise[200:400, left : left + 90]
+    return image
+
+
+@pytest.mark.parametrize("fallback", [False, True])
+def test_a_match_at_b_refused_by_look_falls_back_to_continuity(fallback: bool) -> None:
+    # A red target walks right 10 px a frame; after an interval (frames 10-19) two red people
+    # stand at b, one where its walk leads (390 px), and a green one. The gap matcher hands it
+    # the green one: refused by look. The two red ones look alike, so the re-match by look finds
+    # nothing clear; continuity (its walk carried over the interval) proposes the one at 390.
+    params = {
+        "appearance": {
+            "descriptor": "patch",
+            "refresh_s": 0.04,
+            "gap_max_distance": 0.4,
+            "gap_continuity_fallback": fallback,
+        }
+    }
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    tracker.see(_people(0, [(200.0, 2)]))
+    tracker.initialise(0, np.array([1]), np.array([[200.0, 300.0]]))
+    for t in range(10):
+        x = 200.0 + 10.0 * t
+        tracker.see(_people(t, [(x, 2)]))
+        tracker.step(t, Detections.from_points(np.array([[x, 300.0]])))
+    at_b = [(390.0, 2), (900.0, 2), (650.0, 1)]
+    tracker.see(_people(20, at_b))
+    points = np.array([[x, 300.0] for x, _ in at_b])
+    tracker.reinitialise(20, points[[2]], np.array([2]), Detections.from_points(points))
+    record = tracker.checked_at_b()[0]
+    assert record["refused"] == "look"
+    if fallback:
+        assert tracker.states()[0].matched_detection == 0 and record["by"] == "continuity"
+        assert tracker.statuses() == ["tracked"]
+    else:
+        assert tracker.states()[0].matched_detection == -1 and tracker.statuses() == ["lost"]

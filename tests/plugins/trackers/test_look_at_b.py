@@ -9,6 +9,7 @@ from trackfw_plugins.trackers.appearance_memory import AppearanceSettings
 from trackfw_plugins.trackers.lifecycle import Lifecycle, LifecycleSettings
 from trackfw_plugins.trackers.look_at_b import (
     check_looks_at_b,
+    continuity_rows,
     detection_rows_of,
     look_limits,
     matched_sides,
@@ -125,10 +126,14 @@ WEAK = AppearanceSettings(
 
 
 def _check_one(
-    table: list[list[float]], settings: AppearanceSettings, ratio: float | None = None
+    table: list[list[float]],
+    settings: AppearanceSettings,
+    ratio: float | None = None,
+    continuity: int | None = None,
 ) -> tuple[list[int], list[int]]:
-    """One target matched to detection 0 (gap-matcher ``ratio``, if given), checked with the
-    look distances ``table`` to :func:`_detections`; returns (refused left without one, matched).
+    """One target matched to detection 0 (gap-matcher ``ratio``, if given; the ``continuity``
+    detection, if given), checked with the look distances ``table`` to :func:`_detections`;
+    returns (refused left without one, matched).
     """
     life = Lifecycle.start(LifecycleSettings(), VIDEO, 0, np.zeros((1, 2)))
     matched = np.array([0])
@@ -144,6 +149,7 @@ def _check_one(
         _detections(),
         np.zeros(0, dtype=np.int64),
         limits=look_limits(settings, None if ratio is None else np.array([ratio]), 1),
+        continuity=None if continuity is None else np.array([continuity]),
     )
     return unlike.tolist(), matched.tolist()
 
@@ -161,3 +167,58 @@ def test_a_weak_match_needs_the_stricter_look_and_is_not_handed_back() -> None:
 def test_a_refused_weak_match_still_finds_its_own_head_by_look() -> None:
     # Refused on detection 0, the target takes detection 2, which it looks like clearly.
     assert _check_one([[0.35, 0.6, 0.2]], WEAK, 0.95) == ([], [2])
+
+
+def test_a_refused_match_falls_back_to_continuity_only_where_that_passes_the_look() -> None:
+    # Refused on detection 0 (0.6); nothing is clear by look (0.35 against 0.36).
+    table = [[0.6, 0.35, 0.36]]
+    assert _check_one(table, WEAK) == ([0], [-1])
+    assert _check_one(table, WEAK, continuity=2) == ([], [2])  # within gap_max_distance
+    assert _check_one([[0.6, 0.5, 0.2]], WEAK, continuity=1) == ([], [2])  # 0.5: re-matched
+    assert _check_one([[0.6, 0.5, 0.45]], WEAK, continuity=1) == ([0], [-1])
+
+
+def test_continuity_never_takes_a_detection_a_kept_match_holds() -> None:
+    # Target 1 keeps detection 1 (0.2); continuity proposes it to target 0 as well, which
+    # looks like it (0.3) but finds nothing clear by look.
+    _, life, _ = _three_targets()
+    looks = _Looks([[0.6, 0.3, 0.9], [0.9, 0.2, 0.8], [0.7, 0.7, 0.7]])
+    matched = np.array([0, 1, -1])
+    check_looks_at_b(
+        looks,  # type: ignore[arg-type]
+        life,
+        None,
+        AppearanceSettings(gap_max_distance=0.4, gap_rematch_ratio=0.1),
+        np.array([0, 1]),
+        matched,
+        matched.copy(),
+        np.zeros((3, 2)),
+        _detections(),
+        np.zeros(0, dtype=np.int64),
+        continuity=np.array([1, -1, -1]),
+    )
+    assert matched.tolist() == [-1, 1, -1]
+
+
+def test_continuity_is_the_walk_carried_over_the_gap_and_names_what_differs() -> None:
+    # Target 0 walked right 10 px a frame from 100; target 1 stood at 300. After 10 frames
+    # continuity puts them on detections 1 (200) and 2 (300); the gap matcher gave target 1
+    # detection 2 already, so only target 0's proposal is named.
+    means = np.array([[100.0, 100.0, 10.0, 0.0], [300.0, 100.0, 0.0, 0.0]])
+    proposed = np.array([0, 2])
+    assert continuity_rows(means, 10, _detections(), proposed).tolist() == [1, -1]
+    assert continuity_rows(means, 10, None, proposed).tolist() == [-1, -1]
+
+
+def test_a_match_by_continuity_is_recorded_as_such() -> None:
+    record = record_at_b(
+        np.array([0, 1]),
+        np.array([2, -1]),
+        np.array([0.6, 0.7]),
+        {},
+        np.arange(2),
+        ["tracked", "lost"],
+        continuity=np.array([2, 0]),
+    )
+    assert record[0]["refused"] == "look" and record[0]["by"] == "continuity"
+    assert record[1]["by"] is None and record[1]["detection"] is None
