@@ -40,6 +40,30 @@ def _three_targets() -> tuple[_Looks, Lifecycle, AppearanceSettings]:
     return looks, life, AppearanceSettings(gap_max_distance=0.4, anywhere_max_distance=0.4)
 
 
+def _check_the_first_two(
+    looks: _Looks,
+    life: Lifecycle,
+    settings: AppearanceSettings,
+    matched: np.ndarray,
+    **options: np.ndarray,
+) -> None:
+    """:func:`check_looks_at_b` of targets 0 and 1 of three, with their ``matched`` detections
+    (updated in place) and the keyword ``options`` of the check."""
+    check_looks_at_b(
+        looks,  # type: ignore[arg-type]
+        life,
+        None,
+        settings,
+        np.array([0, 1]),
+        matched,
+        matched.copy(),
+        np.zeros((3, 2)),
+        _detections(),
+        np.zeros(0, dtype=np.int64),
+        **options,  # type: ignore[arg-type]
+    )
+
+
 def test_detection_rows_follow_the_detection_index() -> None:
     detections = _detections()
     assert detection_rows_of(np.array([2, -1, 0]), detections).tolist() == [2, -1, 0]
@@ -78,19 +102,7 @@ def test_the_check_at_b_is_recorded_with_its_looks_and_reasons() -> None:
     proposed = np.array([0, 1, 2])
     matched = np.array([0, 1, -1])
     checked = np.full(3, np.nan)
-    check_looks_at_b(
-        looks,  # type: ignore[arg-type]
-        life,
-        None,
-        settings,
-        np.array([0, 1]),
-        matched,
-        matched.copy(),
-        np.zeros((3, 2)),
-        _detections(),
-        np.zeros(0, dtype=np.int64),
-        checked_looks=checked,
-    )
+    _check_the_first_two(looks, life, settings, matched, checked_looks=checked)
     assert checked[:2].tolist() == [0.6, 0.2] and np.isnan(checked[2])
     record = record_at_b(
         proposed,
@@ -184,19 +196,8 @@ def test_continuity_never_takes_a_detection_a_kept_match_holds() -> None:
     _, life, _ = _three_targets()
     looks = _Looks([[0.6, 0.3, 0.9], [0.9, 0.2, 0.8], [0.7, 0.7, 0.7]])
     matched = np.array([0, 1, -1])
-    check_looks_at_b(
-        looks,  # type: ignore[arg-type]
-        life,
-        None,
-        AppearanceSettings(gap_max_distance=0.4, gap_rematch_ratio=0.1),
-        np.array([0, 1]),
-        matched,
-        matched.copy(),
-        np.zeros((3, 2)),
-        _detections(),
-        np.zeros(0, dtype=np.int64),
-        continuity=np.array([1, -1, -1]),
-    )
+    settings = AppearanceSettings(gap_max_distance=0.4, gap_rematch_ratio=0.1)
+    _check_the_first_two(looks, life, settings, matched, continuity=np.array([1, -1, -1]))
     assert matched.tolist() == [-1, 1, -1]
 
 
