@@ -16,7 +16,8 @@ after the check) is:
     python benchmarks/checks_at_b.py --dataset wear-Stadtmitte --runs bench/runs/real-<hash>
 
 It prints, per reason the check gave (``kept`` when it gave none), the proposals' verdicts, then
-the verdicts after the check, counted over every gap of every video.
+the verdicts after the check, counted over every gap of every video; then the verdicts after the
+check by who gave the detection (``by``: the gap matcher, continuity or the look).
 """
 
 from __future__ import annotations
@@ -71,7 +72,8 @@ def judge(
 
 
 def video_checks(video: VideoContext, run_video: Path, near: float) -> Counter[tuple[str, ...]]:
-    """Counts of ``(reason, proposal verdict, final verdict)`` over one video's checks at b."""
+    """Counts of ``(reason, proposal verdict, final verdict, by)`` over one video's checks at b
+    (``by``: who gave the held detection, ``none`` when it holds none)."""
     truth, run, detections = run_against_truth(video, run_video)
     counts: Counter[tuple[str, ...]] = Counter()
     for gap in run.gaps or []:
@@ -89,7 +91,8 @@ def video_checks(video: VideoContext, run_video: Path, near: float) -> Counter[t
                 )
                 for key in ("proposed", "detection")
             ]
-            counts[(outcome.get("refused") or "kept", *verdicts)] += 1
+            by = outcome.get("by") or ("none" if outcome.get("detection") is None else "?")
+            counts[(outcome.get("refused") or "kept", *verdicts, by)] += 1
     return counts
 
 
@@ -106,18 +109,27 @@ def _row(index: Any, points: FloatArray, run_video: Path) -> int | None:
 
 
 def print_table(counts: Counter[tuple[str, ...]]) -> None:
-    """Per reason, the proposals' verdicts and, after the check, the targets' verdicts."""
+    """Per reason, the proposals' verdicts and, after the check, the targets' verdicts; then the
+    verdicts after the check per giver of the held detection."""
     reasons = sorted({key[0] for key in counts}, key=lambda reason: (reason != "kept", reason))
+    givers = sorted({key[3] for key in counts})
     width = max(len(verdict) for verdict in VERDICTS) + 2
-    for title, column in (("proposed by the gap matcher", 1), ("held after the check", 2)):
+    for title, column, group, rows in (
+        ("proposed by the gap matcher", 1, 0, reasons),
+        ("held after the check", 2, 0, reasons),
+        ("held after the check, by who gave it", 2, 3, givers),
+    ):
         print(f"\n{title}:")
-        print(f"{'check at b':<22}" + "".join(f"{v:>{width}}" for v in VERDICTS))
-        for reason in [*reasons, "all"]:
+        print(
+            f"{'check at b' if group == 0 else 'by':<22}"
+            + "".join(f"{v:>{width}}" for v in VERDICTS)
+        )
+        for row in [*rows, "all"]:
             verdicts: Counter[str] = Counter()
             for key, count in counts.items():
-                if reason in ("all", key[0]):
+                if row in ("all", key[group]):
                     verdicts[key[column]] += count
-            print(f"{reason:<22}" + "".join(f"{verdicts[v]:>{width}}" for v in VERDICTS))
+            print(f"{row:<22}" + "".join(f"{verdicts[v]:>{width}}" for v in VERDICTS))
 
 
 def main() -> None:

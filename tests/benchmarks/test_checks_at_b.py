@@ -47,17 +47,31 @@ def _video(root: Path, at_b: dict[str, dict[str, object]]) -> tuple[Path, Path]:
 
 def test_each_check_at_b_is_judged_before_and_after(tmp_path: Path) -> None:
     at_b = {
-        "1": {"proposed": 0, "refused": None, "detection": 0},  # kept, right
-        "2": {"proposed": 1, "refused": "look", "detection": 2},  # the bystander's, then its own
-        "3": {"proposed": None, "refused": None, "detection": 1},  # not in view, found someone
+        "1": {"proposed": 0, "refused": None, "detection": 0, "by": "gap matcher"},  # right
+        # the bystander's, then its own by continuity
+        "2": {"proposed": 1, "refused": "look", "detection": 2, "by": "continuity"},
+        "3": {"proposed": None, "refused": None, "detection": 1, "by": "look"},  # not in view
     }
     video, run = _video(tmp_path, at_b)
     counts = _script().video_checks(load_video(video), run, near=22.0)
     assert dict(counts) == {
-        ("kept", "right", "right"): 1,
-        ("look", "wrong", "right"): 1,
-        ("kept", "none, out of view", "absent"): 1,
+        ("kept", "right", "right", "gap matcher"): 1,
+        ("look", "wrong", "right", "continuity"): 1,
+        ("kept", "none, out of view", "absent", "look"): 1,
     }
+
+
+def test_the_table_counts_the_held_detections_by_who_gave_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    script = _script()
+    counts = script.Counter(
+        {("look", "wrong", "right", "continuity"): 2, ("kept", "right", "right", "gap matcher"): 1}
+    )
+    script.print_table(counts)
+    table = capsys.readouterr().out.split("by who gave it:")[1].splitlines()
+    rows = {line.split()[0]: line.split()[1:] for line in table[2:] if line.strip()}
+    assert rows["continuity"][0] == "2" and rows["gap"][1] == "1" and rows["all"][0] == "3"
 
 
 def test_a_detection_that_frame_b_does_not_list_is_a_clear_error(tmp_path: Path) -> None:
