@@ -26,7 +26,6 @@ from trackfw.records import (
     LOST,
     NO_MATCH,
     OUT_OF_VIEW,
-    TENTATIVE,
     TRACKED,
     Detections,
     TargetState,
@@ -519,7 +518,8 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         self._restart(returned, positions[returned])
         self.matched = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
         self.matched[active] = matched[active]
-        self._place(t, np.setdiff1d(active[matched[active] == NO_MATCH], unlike), positions)
+        placed = np.setdiff1d(active[matched[active] == NO_MATCH], unlike)
+        self.life.placed_at_b(t, placed, positions[placed])
         # A match that looks like someone else is no evidence of where the target is: it is
         # lost, and only re-acquisition (with the appearance check) brings it back.
         self.life.set(unlike, LOST, t)
@@ -546,20 +546,13 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
         )
         self._match_ratios = None  # they belong to this gap's match
 
-    def _place(self, t: int, placed: IntArray, positions: FloatArray) -> None:
-        """The targets ``placed`` at b without a detection: tentative, or out of view when their
-        place (in ``(K, 2)`` ``positions``) is outside the image."""
-        outside = ~self.life.inside(positions[placed])
-        self.life.set(placed[outside], OUT_OF_VIEW, t)
-        self.life.set(placed[~outside], TENTATIVE, t)
-        self.life.since[placed[~outside]] = t  # the confirmation clock starts at b
-
     def _continuity_at_b(
         self, t: int, active: IntArray, detections: Detections | None, detection_rows: IntArray
     ) -> IntArray:
         """``(K,)`` detection row continuity proposes at b for each active target where it
         differs from the gap matcher's (:func:`.continuity_rows`); all -1 when the fallback is
-        off. The filters still hold their states at a."""
+        off. The filters still hold their states at a, whose frame this reads; b then becomes
+        the tracker's current frame."""
         continuity = np.full(len(self.target_ids), NO_MATCH, dtype=np.int64)
         if self.params.appearance.gap_continuity_fallback:
             continuity[active] = continuity_rows(

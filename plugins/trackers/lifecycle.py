@@ -207,6 +207,14 @@ class Lifecycle:
         self.status[changed] = status
         self.since[changed] = t
 
+    def placed_at_b(self, t: int, rows: IntArray, positions: FloatArray) -> None:
+        """``rows`` were placed at b without a detection, at their ``(M, 2)`` ``positions``:
+        tentative, with the confirmation clock started at b, or out of view outside the image."""
+        outside = ~self.inside(positions)
+        self.set(rows[outside], OUT_OF_VIEW, t)
+        self.set(rows[~outside], TENTATIVE, t)
+        self.since[rows[~outside]] = t
+
     def supported(self, t: int, rows: IntArray, positions: FloatArray, sizes: FloatArray) -> None:
         """``rows`` had a detection at ``(M, 2)`` positions of ``(M,)`` box sides (NaN when
         unknown) on frame ``t``: they are tracked."""

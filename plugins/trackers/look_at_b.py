@@ -132,11 +132,11 @@ def check_looks_at_b(
 
     A match farther than ``settings.gap_max_distance`` (or its target's entry of ``limits``)
     from the target's descriptor is refused. A refused target first falls back to its
-    ``continuity`` proposal (:func:`take_continuity`). The other refused targets, and the ``inactive`` ones
-    (lost and out-of-view targets with ``gap_rematch_inactive``), then take, by Hungarian on
-    appearance distance (``gap_max_distance``, ratio test, sizes checked), the detections no
-    kept match holds, never the one a target's match was just refused for: when the window
-    match swapped two targets, each finds its own head again.
+    ``continuity`` proposal (:func:`take_continuity`). The other refused targets, and the
+    ``inactive`` ones (lost and out-of-view targets with ``gap_rematch_inactive``), then take,
+    by Hungarian on appearance distance (``gap_max_distance``, ratio test, sizes checked), the
+    detections no kept match holds, never the one a target's match was just refused for: when
+    the window match swapped two targets, each finds its own head again.
 
     Args:
         memory: the targets' descriptors.
