@@ -156,20 +156,24 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
 
     def _snapshot(self, t: int, detections: Detections | None) -> Snapshot:
         boxes = None if detections is None else detections.boxes
-        return Snapshot(t, self.image, boxes, self.bank.means[:, :2].copy())
+        held = self.matched != NO_MATCH
+        return Snapshot(t, self.image, boxes, self.bank.means[:, :2].copy(), held)
 
-    def _check_walks(self, t: int, detections: Detections) -> None:
-        """Undo the matches at b whose person walked back (:mod:`.walk_check`)."""
+    def _check_walks(self, t: int, detections: Detections, found: IntArray) -> None:
+        """Undo the matches at b whose person walked back (:mod:`.walk_check`); ``found``: the
+        targets found by look on this frame."""
         check = self.walk_check
         if check is None:
             return
         now = self._snapshot(t, detections)
+        check.found(now, found)
         holding = (
             np.flatnonzero((self.life.status == TRACKED) & (self.matched != NO_MATCH))
             if check.pending
             else np.zeros(0, dtype=np.int64)
         )
         for row, pending in check.due(now, holding):
+            self.reacquisition.not_the_target(self.image, detections, row, int(self.matched[row]))
             self.life.set(np.array([row]), LOST, t)
             self.matched[row] = NO_MATCH
             # The look it had at b: the one taken since may be the other person's.
@@ -307,7 +311,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
                 holders,
             )
             self._split_start(t, detections, targets, taken, sides)
-        self._check_walks(t, detections)
+        self._check_walks(t, detections, found)
         self.reacquisition.end_frame(
             self.image, detections, np.concatenate([taken, columns, shared])
         )
@@ -532,6 +536,7 @@ class KalmanTracker(Tracker[KalmanTrackerParams]):
                 active[matched[active] != NO_MATCH],
                 self.memory.descriptors,
                 self.memory.described_at,
+                active[matched[active] == NO_MATCH],
             )
         self.reacquisition.end_gap()
         self._checked_at_b = record_at_b(

@@ -177,6 +177,17 @@ class Reacquisition:
         if self.neighbours is not None:
             self._states_now(self.neighbours)
 
+    def not_the_target(
+        self, image: UInt8Array | None, detections: Detections, row: int, column: int
+    ) -> None:
+        """Detection ``column`` was found not to be target ``row`` (its person walked back after
+        b): its look joins the people seen apart from the target, so that the search by look
+        does not hand the target that person again (none kept without the neighbour looks)."""
+        neighbours = self.neighbours
+        if neighbours is None or image is None or not self.memory.active:
+            return
+        neighbours.remember(row, self.memory.describe(image, detections, np.array([column])))
+
     def _states_now(self, neighbours: NeighbourLooks) -> IntArray:
         """:meth:`.NeighbourLooks.end_frame` with the targets' states now: who was just lost."""
         status = self.life.status

@@ -10,16 +10,19 @@ camera-aware predictor does), because a wearer's head sways and settles around a
 match whose person clearly walks back (both walks faster than a limit, mostly sideways, in
 opposite directions) is undone: the target is lost, with the descriptor it had at b, and its
 reports since b are withdrawn (:meth:`trackfw.stages.Tracker.withdrawn`), so that a target lost
-before the interval can take that person by look.
+before the interval can take that person by look. A target left without a match at b and found
+by look within that half second is a match at b made a few frames late (the reports between are
+filled back to b): its person's walk is checked the same way, from the frame it was found.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
+import numpy as np
 from pydantic import ConfigDict, Field
 
-from trackfw.arrays import FloatArray, IntArray, UInt8Array
+from trackfw.arrays import BoolArray, FloatArray, IntArray, UInt8Array
 from trackfw.stages import FiniteModel
 from trackfw_plugins.maths.scene_registration import SceneRegistration, register_scene
 from trackfw_plugins.trackers.camera_motion import consecutive_frames_registration
@@ -84,12 +87,14 @@ class Snapshot:
         image: its pixels (None without pixels).
         boxes: ``(N, 4)`` its detection boxes (people kept out of the registration), or None.
         positions: ``(K, 2)`` every target's position on it.
+        held: ``(K,)`` whether each target held a detection on it (None: not known).
     """
 
     t: int
     image: UInt8Array | None
     boxes: FloatArray | None
     positions: FloatArray
+    held: BoolArray | None = None
 
 
 @dataclass
@@ -100,11 +105,13 @@ class PendingCheck:
         before: ``(2,)`` the target's walk before a (pixels per frame, the scene's motion out).
         descriptor: its appearance descriptor at b (restored when the match is undone).
         described_at: the frame that descriptor was taken on.
+        start: the frame the person's walk is measured from (None: frame b).
     """
 
     before: FloatArray
     descriptor: FloatArray | None
     described_at: int
+    start: Snapshot | None = None
 
 
 class WalkCheck:
@@ -121,6 +128,8 @@ class WalkCheck:
         self.recent: list[Snapshot] = []
         self.at_b: Snapshot | None = None
         self.pending: dict[int, PendingCheck] = {}
+        # Targets left without a match at b, checked when found within the half second after it.
+        self.late: dict[int, PendingCheck] = {}
         self.withdrawn: list[tuple[int, int]] = []
 
     def remember(self, snapshot: Snapshot) -> None:
@@ -150,6 +159,7 @@ class WalkCheck:
         rows: IntArray,
         descriptors: list[FloatArray | None],
         described_at: IntArray,
+        unmatched: IntArray | None = None,
     ) -> None:
         """Start checking the targets ``rows`` matched at b; the previous gap's checks end.
 
@@ -158,33 +168,71 @@ class WalkCheck:
             rows: the targets matched at b.
             descriptors: every target's descriptor (None where none).
             described_at: ``(K,)`` the frame each descriptor was taken on.
+            unmatched: the targets tracked on frame a left without a match at b: each is
+                checked from the frame it is found by look, when that is within the half second
+                after b (:meth:`found`), if its walk before a is its detections' (it held one on
+                at least half of that walk's frames).
         """
-        before = self._walks(self.recent[0], self.recent[-1]) if len(self.recent) > 1 else None
-        self.recent = []
+        recent, self.recent = self.recent, []
+        before = self._walks(recent[0], recent[-1]) if len(recent) > 1 else None
         self.at_b = at_b
         self.pending = {}
+        self.late = {}
         if before is None:
             return  # no walk before a to compare with
         for row in rows:
             row = int(row)
             self.pending[row] = PendingCheck(before[row], descriptors[row], int(described_at[row]))
+        # How many of the walk's frames each target held a detection on (None: not known).
+        helds = [snapshot.held for snapshot in recent if snapshot.held is not None]
+        held = np.sum(helds, axis=0) if len(helds) == len(recent) else None
+        for row in np.zeros(0, dtype=np.int64) if unmatched is None else unmatched:
+            row = int(row)
+            if held is None or held[row] * 2 >= len(recent):
+                self.late[row] = PendingCheck(before[row], descriptors[row], int(described_at[row]))
+
+    def found(self, now: Snapshot, rows: IntArray) -> None:
+        """Targets ``rows`` were found by look on frame ``now``: those left without a match at b
+        are checked from here, when ``now`` lies within the half second after b."""
+        at_b = self.at_b
+        if at_b is None or not self.late:
+            return
+        if now.t - at_b.t > self.frames:
+            self.late = {}
+            return
+        for row in rows:
+            check = self.late.pop(int(row), None)
+            if check is not None:
+                self.pending[int(row)] = replace(check, start=now)
 
     def due(self, now: Snapshot, rows: IntArray) -> list[tuple[int, PendingCheck]]:
         """The checks of the targets ``rows`` (those still on their match) whose person walked
         back by frame ``now``; every check is over once its walk is long enough."""
         at_b = self.at_b
-        if at_b is None or not self.pending or now.t - at_b.t < self.frames:
+        if at_b is None or not self.pending:
             return []
-        checks, self.pending = self.pending, {}
-        walks = self._walks(at_b, now)
-        if walks is None:
-            return []
+        ready = {
+            row: check
+            for row, check in self.pending.items()
+            if now.t - (check.start or at_b).t >= self.frames
+        }
+        for row in ready:
+            del self.pending[row]
         held = {int(row) for row in rows}
-        return [
-            (row, check)
-            for row, check in checks.items()
-            if row in held and walked_back(check.before, walks[row], self.min_speed)
-        ]
+        walks: dict[int, FloatArray | None] = {}
+        back = []
+        for row, check in ready.items():
+            start = check.start or at_b
+            if start.t not in walks:
+                walks[start.t] = self._walks(start, now)
+            walk = walks[start.t]
+            if (
+                walk is not None
+                and row in held
+                and walked_back(check.before, walk[row], self.min_speed)
+            ):
+                back.append((row, check))
+        return back
 
     def withdraw(self, row: int) -> None:
         """Record that target ``row``'s reports from frame b on are withdrawn."""

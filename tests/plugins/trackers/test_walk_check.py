@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+import pytest
 
 from trackfw.records import Detections, VideoContext
 from trackfw.registry import load_registry
@@ -124,3 +125,111 @@ def test_the_tracker_loses_a_target_matched_to_someone_walking_back() -> None:
     assert tracker.statuses() == ["lost", "tracked"]
     assert tracker.withdrawn() == [(0, 30)]
     assert tracker.withdrawn() == []  # handed over once
+
+
+def test_a_target_found_by_look_soon_after_b_is_checked_from_its_find() -> None:
+    settings = WalkCheckSettings(after_s=0.4, min_speed_px_s_at_1080=ONE_PX_PER_FRAME)
+    check = WalkCheck(settings, FPS, HEIGHT)
+    people = np.array([[100.0, 120.0], [200.0, 120.0]])
+    _walk(check, 0, 11, people, np.array([[2.0, 0.0], [2.0, 0.0]]), 0.0)
+    # At b neither target is matched; target 0 is found by look 3 frames later on someone who
+    # walks left, target 1 only after the half second, on someone who walks left as well.
+    check.arm(
+        Snapshot(30, _view(0.0), None, people),
+        np.zeros(0, int),
+        [None, None],
+        np.zeros(2, int),
+        np.array([0, 1]),
+    )
+    assert check.pending == {}
+    check.found(Snapshot(33, _view(0.0), None, people), np.array([0]))
+    assert list(check.pending) == [0]
+    walked = people + np.array([-2.0, 0.0]) * check.frames
+    # Its walk is measured from its find: not long enough on frame b + frames.
+    assert check.due(Snapshot(30 + check.frames, _view(0.0), None, walked), np.array([0])) == []
+    check.found(Snapshot(30 + check.frames + 1, _view(0.0), None, people), np.array([1]))
+    assert list(check.pending) == [0]  # found too late: a find, not a match at b
+    back = check.due(Snapshot(33 + check.frames, _view(0.0), None, walked), np.array([0, 1]))
+    assert [row for row, _ in back] == [0]
+    assert check.pending == {}
+
+
+def _frame(people: list[tuple[float, int, int]]) -> np.ndarray:
+    """The still street with each person ``(x, colour channel, seed)`` an 80 px square of their
+    own noise in one colour channel."""
+    image = _view(0.0).copy()
+    for x, channel, seed in people:
+        left = int(x) - 40
+        image[80:160, left : left + 80] = 0
+        noise = np.random.default_rng(seed).integers(100, 255, size=(80, 80))
+        image[80:160, left : left + 80, channel] = noise
+    return image
+
+
+@pytest.mark.parametrize("neighbour_margin", [None, 0.0])
+def test_a_target_found_soon_after_b_on_someone_walking_back_is_lost_again(
+    neighbour_margin: float | None,
+) -> None:
+    params = {
+        "walk_check": {"after_s": 0.4, "min_speed_px_s_at_1080": ONE_PX_PER_FRAME},
+        "appearance": {
+            "descriptor": "patch",
+            "refresh_s": 0.04,
+            # The two red people lie 0.18 apart: near its place the target needs a closer look,
+            # anywhere a clear one (as real.yaml's person-reid limits, 0.25 and 0.4).
+            "max_distance": 0.15,
+            "gap_max_distance": 0.4,
+            "anywhere_max_distance": 0.4,
+            "neighbour_margin": neighbour_margin,
+        },
+    }
+    tracker = load_registry().build_stage("tracker", {"type": "kalman", "params": params})
+    tracker.start(VIDEO)
+    tracker.see(_frame([(100.0, 2, 0), (260.0, 1, 1)]))
+    tracker.initialise(0, np.array([4]), np.array([[100.0, 120.0]]))
+    for t in range(1, 11):  # the red target walks right, 2 px per frame; a green one stands
+        x = 100.0 + 2.0 * t
+        tracker.see(_frame([(x, 2, 0), (260.0, 1, 1)]))
+        tracker.step(t, Detections.from_points(np.array([[x, 120.0], [260.0, 120.0]])))
+    # At b the gap matcher hands it the green one (refused by look); another red person comes
+    # into view two frames later and walks left: the search by look finds the target on them.
+    tracker.see(_frame([(260.0, 1, 1)]))
+    tracker.reinitialise(
+        30,
+        np.array([[260.0, 120.0]]),
+        np.array([0]),
+        Detections.from_points(np.array([[260.0, 120.0]])),
+    )
+    assert tracker.statuses() == ["lost"]
+    statuses = {}
+    for t in range(31, 61):
+        people = [(260.0, 1, 1)] if t < 32 else [(200.0 - 2.0 * (t - 32), 2, 2), (260.0, 1, 1)]
+        tracker.see(_frame(people))
+        tracker.step(t, Detections.from_points(np.array([[x, 120.0] for x, _, _ in people])))
+        statuses[t] = tracker.statuses()[0]
+    found = min(t for t, status in statuses.items() if status == "tracked")
+    assert found <= 30 + 10  # within the half second after b: a late match at b
+    lost_again = [t for t in statuses if t > found and statuses[t] == "lost"]
+    assert lost_again and lost_again[0] == found + 10  # its walk after the find is checked
+    undone = lost_again[0]
+    assert tracker.withdrawn() == [(0, 30)]
+    # Without the people seen apart, nothing says the walker is not the target.
+    again = [t for t in statuses if t > undone and statuses[t] == "tracked"]
+    assert bool(again) == (neighbour_margin is None)
+
+
+def test_a_find_is_checked_only_for_a_target_whose_walk_before_a_held_detections() -> None:
+    check = WalkCheck(WalkCheckSettings(after_s=0.4), FPS, HEIGHT)
+    people = np.array([[100.0, 120.0], [200.0, 120.0], [300.0, 120.0]])
+    for t in range(11):
+        # Target 1 missed one frame of the walk; target 2 coasted through most of it.
+        held = np.array([True, t != 0, t >= 8])
+        check.remember(Snapshot(t, _view(0.0), None, people + np.array([2.0 * t, 0.0]), held))
+    check.arm(
+        Snapshot(30, _view(0.0), None, people),
+        np.zeros(0, int),
+        [None, None, None],
+        np.zeros(3, int),
+        np.array([0, 1, 2]),
+    )
+    assert sorted(check.late) == [0, 1]  # target 2's walk before a was mostly its prediction
