@@ -176,20 +176,22 @@ class WalkCheck:
         recent, self.recent = self.recent, []
         before = self._walks(recent[0], recent[-1]) if len(recent) > 1 else None
         self.at_b = at_b
-        self.pending = {}
-        self.late = {}
+        self.pending, self.late = {}, {}
         if before is None:
             return  # no walk before a to compare with
-        for row in rows:
-            row = int(row)
-            self.pending[row] = PendingCheck(before[row], descriptors[row], int(described_at[row]))
+
+        def check(row: int) -> PendingCheck:
+            return PendingCheck(before[row], descriptors[row], int(described_at[row]))
+
+        self.pending = {int(row): check(int(row)) for row in rows}
         # How many of the walk's frames each target held a detection on (None: not known).
         helds = [snapshot.held for snapshot in recent if snapshot.held is not None]
         held = np.sum(helds, axis=0) if len(helds) == len(recent) else None
-        for row in np.zeros(0, dtype=np.int64) if unmatched is None else unmatched:
-            row = int(row)
-            if held is None or held[row] * 2 >= len(recent):
-                self.late[row] = PendingCheck(before[row], descriptors[row], int(described_at[row]))
+        self.late = {
+            int(row): check(int(row))
+            for row in ([] if unmatched is None else unmatched)
+            if held is None or held[row] * 2 >= len(recent)
+        }
 
     def found(self, now: Snapshot, rows: IntArray) -> None:
         """Targets ``rows`` were found by look on frame ``now``: those left without a match at b
@@ -219,18 +221,17 @@ class WalkCheck:
         for row in ready:
             del self.pending[row]
         held = {int(row) for row in rows}
+        # One registration per frame a walk starts on, only for the targets still on their match.
         walks: dict[int, FloatArray | None] = {}
         back = []
         for row, check in ready.items():
+            if row not in held:
+                continue
             start = check.start or at_b
             if start.t not in walks:
                 walks[start.t] = self._walks(start, now)
             walk = walks[start.t]
-            if (
-                walk is not None
-                and row in held
-                and walked_back(check.before, walk[row], self.min_speed)
-            ):
+            if walk is not None and walked_back(check.before, walk[row], self.min_speed):
                 back.append((row, check))
         return back
 
