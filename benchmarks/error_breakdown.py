@@ -36,6 +36,12 @@ the source frame inside the image (a ``trackfw dataset wear`` video, whose virtu
 blurred continuation where the real frame does not reach, and whose people vanish at that
 edge), or elsewhere (hidden behind someone, or an annotation that stops).
 
+With ``--bench DIR [DIR ...] --pipeline NAME`` in place of ``--dataset`` and ``--runs`` it pools
+the runs of one pipeline over several ``trackfw bench`` output folders (each one's manifest.json
+names its dataset and that pipeline's runs folder): one table for a family of sets.
+
+    python benchmarks/error_breakdown.py --bench bench/*-Campus --pipeline real --exits
+
 With ``--stretches KIND [KIND ...]`` it lists each stretch of at least ``--min-frames``
 consecutive frames on which a target falls into a kind that starts with one of those words
 (``far`` lists every ``far, ...`` kind), video by video: where a set's score is lost.
@@ -46,6 +52,7 @@ from __future__ import annotations
 import argparse
 import bisect
 import csv
+import json
 from collections import Counter
 from dataclasses import fields
 from pathlib import Path
@@ -58,6 +65,7 @@ from trackfw.dataset import POSES_FILE, list_videos, load_video
 from trackfw.errors import UserError
 from trackfw.formats.run import RunRecord, read_run
 from trackfw.records import GroundTruth, Interval, VideoContext
+from trackfw_plugins.bench.sweep import MANIFEST_FILE
 from trackfw_plugins.datasets.wear_camera import CameraPose, pose_homography, transform_points
 from trackfw_plugins.datasets.wear_render import GENERATOR as WEAR_GENERATOR
 from trackfw_plugins.evaluation.capture import bystander_heads, on_heads
@@ -385,13 +393,54 @@ def print_exits(counts: Counter[tuple[str, str]]) -> None:
             print(f"{kind:30s}" + "".join(f"{counts[kind, name]:14d}" for name in EXITS))
 
 
+def bench_runs(bench: Path, pipeline: str) -> tuple[Path, Path]:
+    """The dataset folder and pipeline ``pipeline``'s runs folder of one ``trackfw bench``
+    output folder, from its manifest.json."""
+    path = bench / MANIFEST_FILE
+    try:
+        manifest = json.loads(path.read_text(encoding="utf-8"))
+        dataset = Path(manifest["dataset"])
+        named = {entry["name"]: entry["runs_dir"] for entry in manifest["pipelines"]}
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise UserError(
+            f"{path}: not a readable bench manifest ({error}); expected the manifest.json that"
+            " trackfw bench writes, with 'dataset' and 'pipelines'."
+        ) from error
+    if pipeline not in named:
+        raise UserError(
+            f"{path}: no pipeline named {pipeline!r} in 'pipelines'; expected one of "
+            f"{', '.join(sorted(named)) or 'none'}."
+        )
+    return dataset, Path(named[pipeline])
+
+
+def run_pairs(args: argparse.Namespace) -> list[tuple[Path, Path]]:
+    """``(dataset, runs folder)`` pairs the command line names: one from ``--dataset`` and
+    ``--runs``, or one per ``--bench`` folder."""
+    if args.bench:
+        if args.pipeline is None or args.dataset is not None or args.runs is not None:
+            raise UserError("--bench: expected --pipeline NAME and neither --dataset nor --runs.")
+        if args.against is not None:
+            raise UserError("--against: expected --dataset and --runs, not --bench.")
+        return [bench_runs(bench, args.pipeline) for bench in args.bench]
+    if args.dataset is None or args.runs is None:
+        raise UserError("expected --dataset and --runs, or --bench with --pipeline.")
+    return [(args.dataset, args.runs)]
+
+
 def parse_arguments() -> argparse.Namespace:
     """The command line's options."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--dataset", type=Path, help="dataset folder (gt.csv per video)")
+    parser.add_argument("--runs", type=Path, help="runs folder (one per video)")
     parser.add_argument(
-        "--dataset", type=Path, required=True, help="dataset folder (gt.csv per video)"
+        "--bench",
+        type=Path,
+        nargs="+",
+        metavar="DIR",
+        help="trackfw bench output folders to pool (with --pipeline), instead of --dataset/--runs",
     )
-    parser.add_argument("--runs", type=Path, required=True, help="runs folder (one per video)")
+    parser.add_argument("--pipeline", help="with --bench: the pipeline name whose runs to read")
     parser.add_argument(
         "--dist", type=float, default=40.0, help="match distance in pixels (as eval)"
     )
@@ -427,9 +476,13 @@ def main() -> None:
     exits: Counter[tuple[str, str]] = Counter()
     changed: list[Stretch] = []
     listed: list[Stretch] = []
-    videos = [load_video(path) for path in list_videos(args.dataset)]
-    for video in videos:
-        kinds = video_kinds(video, args.runs / video.name, args.dist, args.near, args.after)
+    videos = [
+        (load_video(path), runs)
+        for dataset, runs in run_pairs(args)
+        for path in list_videos(dataset)
+    ]
+    for video, runs in videos:
+        kinds = video_kinds(video, runs / video.name, args.dist, args.near, args.after)
         counts += Counter(kinds.values())
         if args.stretches:
             listed += stretches_of(video.name, kinds, args.stretches, args.min_frames)
@@ -444,7 +497,12 @@ def main() -> None:
         if not kind.startswith("not in view")
         for phase in PHASES
     )
-    print(f"{len(videos)} videos of {args.dataset}, runs {args.runs}; {truth} ground-truth points")
+    source = (
+        f"{len(args.bench)} bench folders, pipeline {args.pipeline}"
+        if args.bench
+        else f"{args.dataset}, runs {args.runs}"
+    )
+    print(f"{len(videos)} videos of {source}; {truth} ground-truth points")
     print(
         f"{'kind':30s}"
         + "".join(f"{phase:>12s}" for phase in PHASES)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import doctest
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -162,3 +163,42 @@ def test_the_stretches_of_a_kind_are_listed_from_the_command_line(tmp_path: Path
     assert "missed" not in listed
     longer = _command_line(*paths, "--stretches", "far", "--min-frames", "2").stdout
     assert "target" not in longer.split("stretches of far")[1]
+
+
+def _bench_folder(root: Path, dataset: Path, runs: Path) -> Path:
+    """A trackfw bench output folder whose manifest names ``dataset`` and pipeline "p"'s runs."""
+    root.mkdir(parents=True)
+    manifest = {
+        "dataset": str(dataset),
+        "pipelines": [{"name": "p", "hash": "0", "file": "p.yaml", "runs_dir": str(runs)}],
+    }
+    (root / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
+    return root
+
+
+def test_bench_folders_are_pooled_by_pipeline(tmp_path: Path) -> None:
+    video, run = _video(tmp_path)
+    alone = _command_line("--dataset", video.parent, "--runs", run.parent).stdout
+    first = _bench_folder(tmp_path / "b1", video.parent, run.parent)
+    second = _bench_folder(tmp_path / "b2", video.parent, run.parent)
+    pooled = _command_line("--bench", first, second, "--pipeline", "p").stdout
+    assert "2 videos of 2 bench folders, pipeline p; 18 ground-truth points" in pooled
+    assert "1 videos of" in alone and "; 9 ground-truth points" in alone
+    # Every count doubles; the shares stay.
+    right_alone = alone.split("\nright")[1].split()
+    right_pooled = pooled.split("\nright")[1].split()
+    assert right_alone[:4] == ["3", "2", "0", "5"]
+    assert right_pooled[:4] == ["6", "4", "0", "10"]
+    assert right_pooled[4] == right_alone[4]
+
+
+def test_a_bench_folder_without_the_pipeline_is_one_sentence(tmp_path: Path) -> None:
+    video, run = _video(tmp_path)
+    bench = _bench_folder(tmp_path / "b", video.parent, run.parent)
+    result = _command_line("--bench", bench, "--pipeline", "q", check=False)
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert result.stderr.strip() == (
+        f"{bench / 'manifest.json'}: no pipeline named 'q' in 'pipelines'; expected one of p."
+    )
+    both = _command_line("--bench", bench, "--runs", run.parent, "--pipeline", "p", check=False)
+    assert both.returncode == 1 and "neither --dataset nor --runs" in both.stderr
