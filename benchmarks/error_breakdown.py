@@ -423,7 +423,7 @@ def run_pairs(args: argparse.Namespace) -> list[tuple[Path, Path]]:
         if args.against is not None:
             raise UserError("--against: expected --dataset and --runs, not --bench.")
         return [bench_runs(bench, args.pipeline) for bench in args.bench]
-    if args.dataset is None or args.runs is None:
+    if args.dataset is None or args.runs is None or args.pipeline is not None:
         raise UserError("expected --dataset and --runs, or --bench with --pipeline.")
     return [(args.dataset, args.runs)]
 

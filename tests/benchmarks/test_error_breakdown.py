@@ -202,3 +202,8 @@ def test_a_bench_folder_without_the_pipeline_is_one_sentence(tmp_path: Path) -> 
     )
     both = _command_line("--bench", bench, "--runs", run.parent, "--pipeline", "p", check=False)
     assert both.returncode == 1 and "neither --dataset nor --runs" in both.stderr
+    # A pipeline name without bench folders would be ignored: refused instead.
+    named = _command_line(
+        "--dataset", video.parent, "--runs", run.parent, "--pipeline", "p", check=False
+    )
+    assert named.returncode == 1 and "or --bench with --pipeline" in named.stderr
