@@ -33,7 +33,7 @@ from trackfw.records import Detections
 from trackfw_plugins.detectors.boxes import body_boxes_from_heads
 from trackfw_plugins.detectors.head_scorer import cpu_session_options, resolve_threads
 from trackfw_plugins.maths.assignment import distance_matrix
-from trackfw_plugins.maths.reid_crop import crop_box
+from trackfw_plugins.maths.reid_crop import crop_turned_box
 
 #: Shipped embedders by name.
 PERSON_REID_MODELS = {
@@ -128,14 +128,16 @@ def body_boxes(
     return result
 
 
-def body_crops(image: NDArray[np.uint8], boxes: ArrayLike) -> NDArray[np.uint8]:
-    """``(P, 256, 128, 3)`` uint8 BGR crops of ``(P, 4)`` body boxes (borders replicated)."""
+def body_crops(image: NDArray[np.uint8], boxes: ArrayLike, angle: float = 0.0) -> NDArray[np.uint8]:
+    """``(P, 256, 128, 3)`` uint8 BGR crops of ``(P, 4)`` body boxes (borders replicated), each
+    cut from the image turned by ``angle`` degrees about its centre (:func:`.crop_turned_box`;
+    0: as the image stands)."""
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     if len(boxes) == 0:
         return np.zeros((0, *CROP_SHAPE, 3), dtype=np.uint8)
     return np.stack(
         [
-            crop_box(image, left, top, width, height, CROP_SHAPE)
+            crop_turned_box(image, left, top, width, height, CROP_SHAPE, angle)
             for left, top, width, height in boxes
         ]
     )
@@ -219,6 +221,10 @@ class PersonReidEmbedder:
         norms = np.linalg.norm(embeddings, axis=1, keepdims=True)
         return embeddings / np.where(norms > 0, norms, 1.0)
 
-    def describe(self, image: NDArray[np.uint8], boxes: ArrayLike) -> FloatArray:
-        """Embeddings ``(P, D)`` of the people in ``(P, 4)`` body boxes of a BGR frame."""
-        return self.embed(body_crops(image, boxes))
+    def describe(
+        self, image: NDArray[np.uint8], boxes: ArrayLike, angle: float = 0.0
+    ) -> FloatArray:
+        """Embeddings ``(P, D)`` of the people in ``(P, 4)`` body boxes of a BGR frame, cut from
+        the frame turned by ``angle`` degrees (:func:`body_crops`; the upright angle of a rolled
+        camera, :func:`.upright_angle`)."""
+        return self.embed(body_crops(image, boxes, angle))

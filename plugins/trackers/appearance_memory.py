@@ -25,6 +25,7 @@ from trackfw_plugins.maths.appearance import (
     appearance_distance_matrix,
 )
 from trackfw_plugins.maths.box_overlap import box_intersection
+from trackfw_plugins.maths.camera_roll import upright_angle
 from trackfw_plugins.maths.person_reid import (
     PersonReidEmbedder,
     body_boxes,
@@ -152,6 +153,12 @@ class AppearanceSettings(FiniteModel):
     reid_model: str = Field(
         "0287", description="person-reid: embedder '0287', '0248' or an ONNX path"
     )
+    upright_crops: bool = Field(
+        False,
+        description="person-reid: cut every crop upright, turned by the camera's roll as the"
+        " frame's near-vertical lines show it (the last roll found when a frame shows none);"
+        " False: crops as the frame stands",
+    )
 
 
 @lru_cache(maxsize=2)
@@ -186,6 +193,9 @@ class AppearanceMemory:
         # checks of one frame (refresh, veto, search by look, neighbours) describe the same
         # crops, each crop on its own, so a second description is the first one again.
         self._frame: tuple[UInt8Array, Detections, dict[int, FloatArray]] | None = None
+        # The upright angle of the last frame looked at, and the last one found (a frame
+        # without near-vertical lines keeps it: the roll changes little within a segment).
+        self._upright: tuple[UInt8Array | None, float] = (None, 0.0)
 
     @property
     def active(self) -> bool:
@@ -214,8 +224,20 @@ class AppearanceMemory:
         points = detections.points[rows]
         if self.embedder is not None:
             boxes = body_boxes(points, detections, rows, self.fallback_size)
-            return self.embedder.describe(image, boxes)
+            return self.embedder.describe(image, boxes, self._upright_angle(image))
         return appearance_descriptors(image, points)
+
+    def _upright_angle(self, image: UInt8Array) -> float:
+        """The angle that turns ``image``'s people upright (``upright_crops``; 0 when off),
+        found once per frame."""
+        if not self.settings.upright_crops:
+            return 0.0
+        seen, angle = self._upright
+        if seen is not image:
+            found = upright_angle(image)
+            angle = angle if found is None else found
+            self._upright = (image, angle)
+        return angle
 
     def remember(
         self,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from trackfw.records import Detections
 from trackfw_plugins.trackers.appearance_memory import (
@@ -127,3 +128,55 @@ def test_a_detection_is_described_once_per_frame() -> None:
     # The next frame's detections (a new object) are described afresh.
     memory.describe(image, Detections.from_points(frame.points.copy()), np.array([0]))
     assert described[-1] == [0]
+
+
+class _RecordingEmbedder:
+    """Stands in for the person-reid embedder: records the angle each call cuts its crops at."""
+
+    def __init__(self) -> None:
+        self.angles: list[float] = []
+
+    def describe(self, image: np.ndarray, boxes: np.ndarray, angle: float = 0.0) -> np.ndarray:
+        self.angles.append(angle)
+        return np.ones((len(boxes), 4)) / 2.0
+
+
+def test_upright_crops_read_the_roll_once_per_frame_and_keep_the_last_one_found(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from trackfw_plugins.trackers import appearance_memory
+
+    readings = iter([7.5, None])
+    read: list[int] = []
+
+    def upright_angle(image: np.ndarray) -> float | None:
+        read.append(id(image))
+        return next(readings)
+
+    monkeypatch.setattr(appearance_memory, "upright_angle", upright_angle)
+    settings = AppearanceSettings(descriptor="person-reid", upright_crops=True)
+    memory = AppearanceMemory(settings, 1, 360, 25.0)
+    embedder = _RecordingEmbedder()
+    memory.embedder = embedder  # type: ignore[assignment]
+    first, second = _image(), _image()
+    heads = Detections.from_points(np.array([[150.0, 180.0], [480.0, 180.0]]))
+    memory.describe(first, heads, np.array([0]))
+    memory.describe(first, Detections.from_points(heads.points.copy()), np.array([1]))
+    # The second frame shows no vertical lines: its crops keep the first frame's roll.
+    memory.describe(second, heads, np.array([0]))
+    assert embedder.angles == [7.5, 7.5, 7.5]
+    assert read == [id(first), id(second)]
+
+
+def test_crops_stand_as_they_are_without_upright_crops(monkeypatch: pytest.MonkeyPatch) -> None:
+    from trackfw_plugins.trackers import appearance_memory
+
+    def never(image: np.ndarray) -> float | None:
+        raise AssertionError("the roll is read only with upright_crops")
+
+    monkeypatch.setattr(appearance_memory, "upright_angle", never)
+    memory = AppearanceMemory(AppearanceSettings(descriptor="person-reid"), 1, 360, 25.0)
+    embedder = _RecordingEmbedder()
+    memory.embedder = embedder  # type: ignore[assignment]
+    memory.describe(_image(), Detections.from_points(np.array([[150.0, 180.0]])), np.array([0]))
+    assert embedder.angles == [0.0]
