@@ -14,7 +14,7 @@ from functools import lru_cache
 from typing import Literal
 
 import numpy as np
-from pydantic import ConfigDict, Field
+from pydantic import ConfigDict, Field, model_validator
 
 from trackfw.arrays import BoolArray, FloatArray, IntArray, UInt8Array
 from trackfw.records import Detections
@@ -159,6 +159,17 @@ class AppearanceSettings(FiniteModel):
         " frame's near-vertical lines show it (the last roll found when a frame shows none);"
         " False: crops as the frame stands",
     )
+
+    @model_validator(mode="after")
+    def _upright_needs_person_reid(self) -> AppearanceSettings:
+        # Only the deep embedder's body crops are cut upright; elsewhere the option would do
+        # nothing while seeming on.
+        if self.upright_crops and self.descriptor != "person-reid":
+            raise ValueError(
+                "upright_crops cuts person-reid crops; expected descriptor: person-reid"
+                f" (descriptor is {self.descriptor!r})"
+            )
+        return self
 
 
 @lru_cache(maxsize=2)

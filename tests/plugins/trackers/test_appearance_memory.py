@@ -180,3 +180,8 @@ def test_crops_stand_as_they_are_without_upright_crops(monkeypatch: pytest.Monke
     memory.embedder = embedder  # type: ignore[assignment]
     memory.describe(_image(), Detections.from_points(np.array([[150.0, 180.0]])), np.array([0]))
     assert embedder.angles == [0.0]
+
+
+def test_upright_crops_without_person_reid_is_refused() -> None:
+    with pytest.raises(ValueError, match="upright_crops cuts person-reid crops"):
+        AppearanceSettings(descriptor="patch", upright_crops=True)
