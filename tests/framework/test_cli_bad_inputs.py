@@ -9,7 +9,8 @@ from __future__ import annotations
 import os
 import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -181,6 +182,24 @@ def test_default_output_is_checked_too(
 # ---------------------------------------------------------------------------------------- signals
 
 
+@contextmanager
+def _signal_not_ignored(signum: int) -> Iterator[None]:
+    """Python's default handler for ``signum`` while inside, when the process ignores it.
+
+    A background job (``cmd &``, ``nohup``) inherits SIGINT ignored, and the CLI rightly leaves
+    an ignored signal ignored; the test stands in for a terminal where Ctrl-C reaches the run.
+    """
+    if signal.getsignal(signum) is not signal.SIG_IGN:
+        yield
+        return
+    default = signal.default_int_handler if signum == signal.SIGINT else signal.SIG_DFL
+    signal.signal(signum, default)
+    try:
+        yield
+    finally:
+        signal.signal(signum, signal.SIG_IGN)
+
+
 @pytest.mark.parametrize(
     ("signum", "expected_code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["int", "term"]
 )
@@ -208,11 +227,12 @@ def test_a_signal_mid_run_exits_128_plus_signal_and_leaves_only_complete_videos(
         return real_run_video(self, video, *arguments, **options)  # type: ignore[arg-type]
 
     monkeypatch.setattr(Engine, "run_video", run_video)
-    previous = signal.getsignal(signum)
-    code, stderr = run_cli(
-        capsys, "run", pipeline_file(PIPELINE), "-i", tmp_path / "data", "-o", output, "-q"
-    )
-    assert signal.getsignal(signum) == previous  # the CLI put the handler back
+    with _signal_not_ignored(signum):
+        previous = signal.getsignal(signum)
+        code, stderr = run_cli(
+            capsys, "run", pipeline_file(PIPELINE), "-i", tmp_path / "data", "-o", output, "-q"
+        )
+        assert signal.getsignal(signum) == previous  # the CLI put the handler back
     assert_one_error_line(
         code, stderr, f"interrupted by {signal.Signals(signum).name}", expected_code=expected_code
     )
