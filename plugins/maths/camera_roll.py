@@ -4,9 +4,9 @@ See docs/algorithms/segment-tracker.md#upright-crops. A head-worn camera rolls w
 head, and every segment after a look-away may hold a different roll. Deep re-ID embedders are
 trained on upright people: on TUD-Stadtmitte a person turned by 10 (15) degrees lies a median
 0.07 (0.13, cosine) from itself upright, where the tracker's look limits are 0.25-0.4. The
-world's verticals (building edges, poles, door frames, people)
-stay near-vertical lines in the image, turned by the roll; the length-weighted median of the
-near-vertical segments' lean is the roll, to about a degree where a scene has such lines.
+world's verticals (building edges, poles, door frames, people) stay near-vertical lines in the
+image, turned by the roll; the length-weighted median of the near-vertical segments' lean is the
+roll, to about a degree where a scene has such lines.
 """
 
 from __future__ import annotations

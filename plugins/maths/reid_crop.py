@@ -64,20 +64,17 @@ def crop_box(
 
 
 def turned_box_transform(
-    left: float,
-    top: float,
-    width: float,
-    height: float,
-    output_shape: tuple[int, int],
-    angle: float,
+    box: tuple[float, float, float, float], output_shape: tuple[int, int], angle: float
 ) -> FloatArray:
-    """``(2, 3)`` affine map from image pixels to the crop of a box cut from the image turned by
-    ``angle`` degrees (counter-clockwise, OpenCV's sign) about the box's centre.
+    """``(2, 3)`` affine map from image pixels to the crop of ``box`` (left, top, width, height)
+    cut from the image turned by ``angle`` degrees (counter-clockwise, OpenCV's sign) about the
+    box's centre.
 
-    >>> m = turned_box_transform(10.0, 20.0, 4.0, 8.0, (8, 4), 90.0)
+    >>> m = turned_box_transform((10.0, 20.0, 4.0, 8.0), (8, 4), 90.0)
     >>> (m @ [12.0, 24.0, 1.0]).round(6).tolist()  # the centre stays the crop's centre
     [2.0, 4.0]
     """
+    left, top, width, height = box
     rows, columns = output_shape
     centre = (left + width / 2.0, top + height / 2.0)
     turn = np.vstack([cv2.getRotationMatrix2D(centre, angle, 1.0), [0.0, 0.0, 1.0]])
@@ -104,12 +101,11 @@ def crop_turned_box(
     Sampled in one bilinear warp, borders replicated; ``angle`` 0 is :func:`crop_box`."""
     if angle == 0.0:
         return crop_box(image, left, top, width, height, output_shape)
-    width, height = max(1.0, width), max(1.0, height)
+    box = (left, top, max(1.0, width), max(1.0, height))
     rows, columns = output_shape
-    transform = turned_box_transform(left, top, width, height, output_shape, angle)
     crop = cv2.warpAffine(
         image,
-        transform,
+        turned_box_transform(box, output_shape, angle),
         (columns, rows),
         flags=cv2.INTER_LINEAR,
         borderMode=cv2.BORDER_REPLICATE,
