@@ -184,6 +184,35 @@ def test_shipped_models_find_the_people_of_a_real_frame(
     assert len(bodies) <= len(truth) + 2
 
 
+def test_a_wide_frame_runs_on_a_stride_padded_input_and_maps_back(
+    tmp_path: Path, make_constant_model
+) -> None:
+    # A 128x64 frame at input 64: scale 0.5, 64x32 of image. 'stride' runs the network on
+    # 64 columns x 32 rows (42 anchors), 'square' on 64x64 (84 anchors).
+    cells, strides = anchor_grid(32, 64)
+    rows = np.zeros((len(cells), 6))
+    index = 32 + 7  # stride 16, column 3, row 1: centre (3.5 * 16, 1.5 * 16) = (56, 24)
+    assert cells[index].tolist() == [3.0, 1.0] and strides[index] == 16
+    rows[index] = [0.5, 0.5, 0.0, 0.0, 0.9, 0.9]
+    model = _rows_model(tmp_path, make_constant_model, rows)
+    frame = np.zeros((64, 128, 3), dtype=np.uint8)
+    bodies, _ = YoloxDetector(YoloxParams(model=str(model))).detect_bodies(frame)
+    # Input pixels (48, 16, 16, 16) at scale 0.5 -> frame pixels.
+    assert bodies.ravel().tolist() == pytest.approx([96.0, 32.0, 32.0, 32.0])
+    square = YoloxDetector(YoloxParams(model=str(model), padding="square"))
+    with pytest.raises(UserError, match=r"expected \(1, 84, 5 \+ C\) rows .* at input 64x64"):
+        square.detect_bodies(frame)
+
+
+def test_stride_padding_finds_the_people_square_padding_finds(shared_data: Path) -> None:
+    image = cv2.imread(str(shared_data / "TUD-Stadtmitte" / "img1" / "000001.jpg"))
+    wide = cv2.copyMakeBorder(image, 0, 0, 160, 160, cv2.BORDER_REFLECT)  # 960x480: 416x224
+    square = YoloxDetector(YoloxParams(padding="square", threads=1)).detect_bodies(wide)[0]
+    stride = YoloxDetector(YoloxParams(padding="stride", threads=1)).detect_bodies(wide)[0]
+    assert len(square) >= 4
+    assert (_iou(square, stride) >= 0.8).any(axis=1).mean() >= 0.9
+
+
 def test_tiled_detection_keeps_each_person_once(shared_data: Path) -> None:
     image = cv2.imread(str(shared_data / "TUD-Stadtmitte" / "img1" / "000001.jpg"))
     large = cv2.resize(image, None, fx=2.0, fy=2.0)
