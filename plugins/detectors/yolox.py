@@ -395,14 +395,25 @@ class YoloxDetector(Detector):
 
     def _detect_once(self, image: NDArray[np.uint8]) -> tuple[FloatArray, FloatArray]:
         tensor, scale = letterbox(image, self.side, self.settings.padding == "square")
-        (output,) = self.session.run(None, {self.input_name: tensor})  # type: ignore[attr-defined]
+        try:
+            (output,) = self.session.run(None, {self.input_name: tensor})  # type: ignore[attr-defined]
+        except Exception as error:  # onnxruntime raises several private exception types
+            if self.settings.padding == "square":
+                raise
+            # An export with sizes baked into its graph runs only at its own square input.
+            first = str(error).splitlines()[0] if str(error) else type(error).__name__
+            raise UserError(
+                f"{self.path}: the model does not run at input {tensor.shape[3]}x"
+                f"{tensor.shape[2]} (width x height; {first}); expected a fully convolutional"
+                " YOLOX export, or set padding: square."
+            ) from None
         rows = np.asarray(output, dtype=np.float64).reshape(-1, np.shape(output)[-1])
         height, width = tensor.shape[2:]
         cells, strides = self._grid(height, width)
         if len(rows) != len(cells) or rows.shape[1] <= 5 + self.settings.class_index:
             raise UserError(
                 f"{self.path}: output is {list(np.shape(output))}; expected (1,"
-                f" {len(cells)}, 5 + C) rows for strides 8/16/32 at input {height}x{width}."
+                f" {len(cells)}, 5 + C) rows for strides 8/16/32 at input {width}x{height}."
             )
         # Threshold before decoding: most of the thousands of anchors score near zero.
         scores = rows[:, 4] * rows[:, 5 + self.settings.class_index]

@@ -204,6 +204,31 @@ def test_a_wide_frame_runs_on_a_stride_padded_input_and_maps_back(
         square.detect_bodies(frame)
 
 
+def test_an_export_with_a_fixed_size_graph_asks_for_square_padding(tmp_path: Path) -> None:
+    import onnx
+    from onnx import helper
+
+    # The rows reshaped to a fixed (1, 2048, 6): the graph runs only at its 64x64 input.
+    shape = helper.make_tensor("shape", onnx.TensorProto.INT64, [3], [1, 2048, 6])
+    graph = helper.make_graph(
+        [helper.make_node("Reshape", ["image", "shape"], ["output"])],
+        "fixed",
+        [helper.make_tensor_value_info("image", onnx.TensorProto.FLOAT, [1, 3, 64, 64])],
+        [helper.make_tensor_value_info("output", onnx.TensorProto.FLOAT, [1, 2048, 6])],
+        [shape],
+    )
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
+    model.ir_version = 8
+    path = tmp_path / "fixed.onnx"
+    onnx.save(model, str(path))
+    frame = np.zeros((64, 128, 3), dtype=np.uint8)  # runs at 64x32 with stride padding
+    with pytest.raises(UserError, match=r"fixed\.onnx: the model does not run at input 64x32 \(width x height.*padding: square"):
+        YoloxDetector(YoloxParams(model=str(path))).detect_bodies(frame)
+    # At its own square input it runs (and its 2048 rows are then refused as not YOLOX's grid).
+    with pytest.raises(UserError, match=r"expected \(1, 84, 5 \+ C\) rows"):
+        YoloxDetector(YoloxParams(model=str(path), padding="square")).detect_bodies(frame)
+
+
 def test_stride_padding_finds_the_people_square_padding_finds(shared_data: Path) -> None:
     image = cv2.imread(str(shared_data / "TUD-Stadtmitte" / "img1" / "000001.jpg"))
     wide = cv2.copyMakeBorder(image, 0, 0, 160, 160, cv2.BORDER_REFLECT)  # 960x480: 416x224
