@@ -33,7 +33,7 @@ from trackfw.records import Detections
 from trackfw_plugins.detectors.boxes import body_boxes_from_heads
 from trackfw_plugins.detectors.head_scorer import cpu_session_options, resolve_threads
 from trackfw_plugins.maths.assignment import distance_matrix
-from trackfw_plugins.maths.reid_crop import crop_turned_box
+from trackfw_plugins.maths.reid_crop import crop_box
 
 #: Shipped embedders by name.
 PERSON_REID_MODELS = {
@@ -130,14 +130,14 @@ def body_boxes(
 
 def body_crops(image: NDArray[np.uint8], boxes: ArrayLike, angle: float = 0.0) -> NDArray[np.uint8]:
     """``(P, 256, 128, 3)`` uint8 BGR crops of ``(P, 4)`` body boxes (borders replicated), each
-    cut from the image turned by ``angle`` degrees about its centre (:func:`.crop_turned_box`;
+    cut from the image turned by ``angle`` degrees about its centre (:func:`.crop_box`;
     0: as the image stands)."""
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     if len(boxes) == 0:
         return np.zeros((0, *CROP_SHAPE, 3), dtype=np.uint8)
     return np.stack(
         [
-            crop_turned_box(image, left, top, width, height, CROP_SHAPE, angle)
+            crop_box(image, left, top, width, height, CROP_SHAPE, angle)
             for left, top, width, height in boxes
         ]
     )

@@ -46,8 +46,18 @@ def crop_box(
     width: float,
     height: float,
     output_shape: tuple[int, int],
+    angle: float = 0.0,
 ) -> NDArray[np.uint8]:
-    """Crop a box with replicated borders and resize it to ``output_shape`` (rows, columns)."""
+    """Crop a box with replicated borders and resize it to ``output_shape`` (rows, columns).
+
+    With ``angle`` (degrees, counter-clockwise, OpenCV's sign) the box is cut from the image
+    turned about the box's centre, in one bilinear warp: a person leaning with a rolled camera
+    is cut upright.
+    """
+    if angle != 0.0:
+        return _turned_crop(
+            image, (left, top, max(1.0, width), max(1.0, height)), output_shape, angle
+        )
     left_pixel, top_pixel = round(left), round(top)
     width_pixels, height_pixels = max(1, round(width)), max(1, round(height))
     crop = np.ascontiguousarray(
@@ -87,21 +97,13 @@ def turned_box_transform(
     return np.asarray(to_crop @ turn, dtype=np.float64)
 
 
-def crop_turned_box(
+def _turned_crop(
     image: NDArray[np.uint8],
-    left: float,
-    top: float,
-    width: float,
-    height: float,
+    box: tuple[float, float, float, float],
     output_shape: tuple[int, int],
     angle: float,
 ) -> NDArray[np.uint8]:
-    """:func:`crop_box` of the image turned by ``angle`` degrees about the box's centre
-    (counter-clockwise, OpenCV's sign): a person leaning with a rolled camera is cut upright.
-    Sampled in one bilinear warp, borders replicated; ``angle`` 0 is :func:`crop_box`."""
-    if angle == 0.0:
-        return crop_box(image, left, top, width, height, output_shape)
-    box = (left, top, max(1.0, width), max(1.0, height))
+    """:func:`crop_box` of ``box`` (left, top, width, height) turned by ``angle`` degrees."""
     rows, columns = output_shape
     crop = cv2.warpAffine(
         image,

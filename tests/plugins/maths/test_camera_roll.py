@@ -13,7 +13,7 @@ import pytest
 
 from trackfw_plugins.maths.camera_roll import upright_angle
 from trackfw_plugins.maths.person_reid import PersonReidEmbedder, cosine_distance_matrix
-from trackfw_plugins.maths.reid_crop import crop_box, crop_turned_box
+from trackfw_plugins.maths.reid_crop import crop_box
 
 
 def _facade(height: int = 480, width: int = 640) -> np.ndarray:
@@ -66,7 +66,7 @@ def test_a_turned_crop_of_a_turned_person_is_the_upright_crop() -> None:
     matrix = cv2.getRotationMatrix2D(centre, -10.0, 1.0)
     rolled = cv2.warpAffine(upright, matrix, (640, 480), borderMode=cv2.BORDER_REPLICATE)
     plain = crop_box(rolled, left, top, width, height, (256, 128)).astype(np.int64)
-    turned = crop_turned_box(rolled, left, top, width, height, (256, 128), 10.0).astype(np.int64)
+    turned = crop_box(rolled, left, top, width, height, (256, 128), 10.0).astype(np.int64)
     inner = (slice(20, -20), slice(10, -10))  # the corners come from outside the box
     assert np.abs(turned - reference)[inner].mean() < 0.3 * np.abs(plain - reference)[inner].mean()
 
@@ -74,7 +74,7 @@ def test_a_turned_crop_of_a_turned_person_is_the_upright_crop() -> None:
 def test_no_turn_is_the_plain_crop() -> None:
     image = _facade()
     np.testing.assert_array_equal(
-        crop_turned_box(image, 10.5, 20.2, 60.0, 120.0, (256, 128), 0.0),
+        crop_box(image, 10.5, 20.2, 60.0, 120.0, (256, 128), 0.0),
         crop_box(image, 10.5, 20.2, 60.0, 120.0, (256, 128)),
     )
 
